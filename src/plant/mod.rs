@@ -1,0 +1,281 @@
+//! The physics: the pseudo-Wiener plant of paper 000 (linear block -> backlash -> sensor).
+//!
+//! Nothing here knows about FMI. The FMU adapter in `crate::fmus` and the command line both drive [`Plant`].
+//!
+//! Timing, as in the project's contract: the plant is at sample k with outputs x(k), w(k), y(k), which depend
+//! on inputs up to u(k - delay) only; [`Plant::advance`] takes u(k) and moves to sample k + 1. All signals are
+//! zero before k = 0, so x(0) = 0 and w(0) = 0.
+
+pub mod backlash;
+pub mod linear;
+
+pub use backlash::{BacklashParams, Mode};
+pub use linear::{Arx, ArxParams, MAX_DELAY, MAX_ORDER};
+
+use rand_chacha::ChaCha8Rng;
+use rand_core::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+use serde::{Deserialize, Serialize};
+
+/// A parameter that is out of its range, with the reason.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("parameter {name} = {value} is invalid: {reason}")]
+pub struct ParamError {
+    pub name: String,
+    pub value: f64,
+    pub reason: &'static str,
+}
+
+impl ParamError {
+    pub fn new(name: impl Into<String>, value: f64, reason: &'static str) -> Self {
+        Self {
+            name: name.into(),
+            value,
+            reason,
+        }
+    }
+}
+
+/// Check helpers shared by the plant and the estimators.
+pub(crate) fn check_finite(name: &str, v: f64) -> Result<(), ParamError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(ParamError::new(name, v, "must be a finite number"))
+    }
+}
+
+pub(crate) fn check_positive(name: &str, v: f64) -> Result<(), ParamError> {
+    check_finite(name, v)?;
+    if v > 0.0 {
+        Ok(())
+    } else {
+        Err(ParamError::new(name, v, "must be > 0"))
+    }
+}
+
+pub(crate) fn check_non_negative(name: &str, v: f64) -> Result<(), ParamError> {
+    check_finite(name, v)?;
+    if v >= 0.0 {
+        Ok(())
+    } else {
+        Err(ParamError::new(name, v, "must be >= 0"))
+    }
+}
+
+impl ArxParams {
+    /// Orders in range, delay >= 1, finite coefficients.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        if self.na > MAX_ORDER {
+            return Err(ParamError::new("na", self.na as f64, "must be in 0..=4"));
+        }
+        if self.nb > MAX_ORDER {
+            return Err(ParamError::new("nb", self.nb as f64, "must be in 0..=4"));
+        }
+        if self.delay < 1 || self.delay > MAX_DELAY {
+            return Err(ParamError::new(
+                "delay",
+                self.delay as f64,
+                "must be in 1..=64 samples",
+            ));
+        }
+        for (i, a) in self.a.iter().enumerate() {
+            check_finite(&format!("a{}", i + 1), *a)?;
+        }
+        for (j, b) in self.b.iter().enumerate() {
+            check_finite(&format!("b{j}"), *b)?;
+        }
+        Ok(())
+    }
+}
+
+impl BacklashParams {
+    /// Slopes > 0 and gaps >= 0 (a zero gap is a legal, if degenerate, backlash).
+    pub fn validate(&self) -> Result<(), ParamError> {
+        check_positive("m1", self.m1)?;
+        check_positive("m2", self.m2)?;
+        check_non_negative("c1", self.c1)?;
+        check_non_negative("c2", self.c2)
+    }
+}
+
+/// Everything that defines a plant.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PlantParams {
+    pub arx: ArxParams,
+    pub backlash: BacklashParams,
+    /// Standard deviation of the white Gaussian measurement noise added to w to give y.
+    pub noise_std: f64,
+    /// Seed of the noise generator (ChaCha8); the same seed gives the same noise sequence.
+    pub noise_seed: u64,
+}
+
+impl PlantParams {
+    /// Paper 000, section 4, noise-free.
+    pub const PAPER: Self = Self {
+        arx: ArxParams::PAPER,
+        backlash: BacklashParams::PAPER,
+        noise_std: 0.0,
+        noise_seed: 0,
+    };
+
+    pub fn validate(&self) -> Result<(), ParamError> {
+        self.arx.validate()?;
+        self.backlash.validate()?;
+        check_non_negative("noise_std", self.noise_std)
+    }
+}
+
+/// The plant's signals at one sample.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PlantOutput {
+    /// Linear block output.
+    pub x: f64,
+    /// Backlash output (noise-free).
+    pub w: f64,
+    /// Measured output: w plus noise.
+    pub y: f64,
+    /// Regime of the backlash at this sample.
+    pub mode: Mode,
+}
+
+/// The plant with its state.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Plant {
+    params: PlantParams,
+    arx: Arx,
+    rng: ChaCha8Rng,
+    out: PlantOutput,
+    k: u64,
+}
+
+impl Plant {
+    /// A plant at sample 0 with zero history.
+    pub fn new(params: PlantParams) -> Result<Self, ParamError> {
+        params.validate()?;
+        let mut p = Self {
+            params,
+            arx: Arx::new(params.arx),
+            rng: ChaCha8Rng::seed_from_u64(params.noise_seed),
+            out: PlantOutput {
+                x: 0.0,
+                w: 0.0,
+                y: 0.0,
+                mode: Mode::Held,
+            },
+            k: 0,
+        };
+        p.out = p.compute(0.0);
+        Ok(p)
+    }
+
+    pub fn params(&self) -> &PlantParams {
+        &self.params
+    }
+
+    /// The outputs at the current sample.
+    pub fn output(&self) -> PlantOutput {
+        self.out
+    }
+
+    /// The current sample index.
+    pub fn sample(&self) -> u64 {
+        self.k
+    }
+
+    fn compute(&mut self, w_prev: f64) -> PlantOutput {
+        let x = self.arx.peek();
+        let (w, mode) = self.params.backlash.step(x, w_prev);
+        let noise = if self.params.noise_std > 0.0 {
+            let z: f64 = StandardNormal.sample(&mut self.rng);
+            self.params.noise_std * z
+        } else {
+            0.0
+        };
+        PlantOutput {
+            x,
+            w,
+            y: w + noise,
+            mode,
+        }
+    }
+
+    /// Take u(k) and move to sample k + 1.
+    pub fn advance(&mut self, u_k: f64) {
+        self.arx.push(u_k, self.out.x);
+        self.k += 1;
+        self.out = self.compute(self.out.w);
+    }
+
+    /// Outputs at samples 0..u.len() for the input sequence u (output k is the plant's state before it reads u(k)).
+    pub fn simulate(params: PlantParams, u: &[f64]) -> Result<Vec<PlantOutput>, ParamError> {
+        let mut p = Self::new(params)?;
+        Ok(u
+            .iter()
+            .map(|&uk| {
+                let o = p.output();
+                p.advance(uk);
+                o
+            })
+            .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn starts_at_zero_and_responds_after_the_delay() {
+        let mut p = Plant::new(PlantParams::PAPER).unwrap();
+        assert_eq!(p.output().y, 0.0);
+        p.advance(2.0);
+        // x(1) = 0.8 * 2 = 1.6 > 0 + 0.5: engaged up, w = 1.1.
+        let o = p.output();
+        assert!((o.x - 1.6).abs() < 1e-15);
+        assert!((o.w - 1.1).abs() < 1e-15);
+        assert_eq!(o.mode, Mode::Up);
+    }
+
+    #[test]
+    fn simulate_matches_stepping_and_noise_is_seeded() {
+        let mut params = PlantParams::PAPER;
+        params.noise_std = 0.1;
+        params.noise_seed = 7;
+        let u: Vec<f64> = (0..500).map(|k| (k as f64 * 0.37).sin() * 2.0).collect();
+        let a = Plant::simulate(params, &u).unwrap();
+        let b = Plant::simulate(params, &u).unwrap();
+        assert_eq!(a, b);
+        params.noise_seed = 8;
+        let c = Plant::simulate(params, &u).unwrap();
+        assert!(a.iter().zip(&c).any(|(a, c)| a.y != c.y));
+        // The noise is y - w: zero mean, the requested std (500 samples: within 4 standard errors).
+        let e: Vec<f64> = a.iter().map(|o| o.y - o.w).collect();
+        let mean = e.iter().sum::<f64>() / e.len() as f64;
+        let std = (e.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / e.len() as f64).sqrt();
+        assert!(mean.abs() < 4.0 * 0.1 / (500f64).sqrt(), "mean {mean}");
+        assert!((std - 0.1).abs() < 4.0 * 0.1 / (1000f64).sqrt(), "std {std}");
+    }
+
+    #[test]
+    fn bad_parameters_are_refused_with_their_name() {
+        let mut p = PlantParams::PAPER;
+        p.backlash.m2 = 0.0;
+        assert_eq!(Plant::new(p).unwrap_err().name, "m2");
+        let mut p = PlantParams::PAPER;
+        p.backlash.c1 = -0.1;
+        assert_eq!(Plant::new(p).unwrap_err().name, "c1");
+        let mut p = PlantParams::PAPER;
+        p.arx.delay = 0;
+        assert_eq!(Plant::new(p).unwrap_err().name, "delay");
+        let mut p = PlantParams::PAPER;
+        p.arx.na = 5;
+        assert_eq!(Plant::new(p).unwrap_err().name, "na");
+        let mut p = PlantParams::PAPER;
+        p.arx.a[2] = f64::NAN;
+        assert_eq!(Plant::new(p).unwrap_err().name, "a3");
+        let mut p = PlantParams::PAPER;
+        p.noise_std = f64::INFINITY;
+        assert_eq!(Plant::new(p).unwrap_err().name, "noise_std");
+    }
+}
