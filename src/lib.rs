@@ -4,4 +4,5 @@
 //! - [`identify`]: the estimators (MRGIA of paper 000).
 //! - `fmi2`: one FMI 2.0 co-simulation layer, generic over the model; `fmus`: the two adapters.
 
+pub mod identify;
 pub mod plant;

@@ -1,0 +1,1 @@
+//! Frequency identification (paper 003). Work in progress.

@@ -1,0 +1,1 @@
+//! MRGIA (paper 000). Work in progress.
