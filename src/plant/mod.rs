@@ -173,6 +173,14 @@ impl Plant {
         &self.params
     }
 
+    /// Change the backlash while running (wear: the gaps grow). The new borders act from the next sample on;
+    /// the held output stays where it is.
+    pub fn set_backlash(&mut self, backlash: BacklashParams) -> Result<(), ParamError> {
+        backlash.validate()?;
+        self.params.backlash = backlash;
+        Ok(())
+    }
+
     /// The outputs at the current sample.
     pub fn output(&self) -> PlantOutput {
         self.out
@@ -210,8 +218,7 @@ impl Plant {
     /// Outputs at samples 0..u.len() for the input sequence u (output k is the plant's state before it reads u(k)).
     pub fn simulate(params: PlantParams, u: &[f64]) -> Result<Vec<PlantOutput>, ParamError> {
         let mut p = Self::new(params)?;
-        Ok(u
-            .iter()
+        Ok(u.iter()
             .map(|&uk| {
                 let o = p.output();
                 p.advance(uk);
@@ -254,7 +261,10 @@ mod tests {
         let mean = e.iter().sum::<f64>() / e.len() as f64;
         let std = (e.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / e.len() as f64).sqrt();
         assert!(mean.abs() < 4.0 * 0.1 / (500f64).sqrt(), "mean {mean}");
-        assert!((std - 0.1).abs() < 4.0 * 0.1 / (1000f64).sqrt(), "std {std}");
+        assert!(
+            (std - 0.1).abs() < 4.0 * 0.1 / (1000f64).sqrt(),
+            "std {std}"
+        );
     }
 
     #[test]

@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# The main job on a fresh machine: set up, build both FMUs and the CLI, co-simulate plant + estimator on
+# paper 000's example, print how the estimates converge, and write the plots to out/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+cargo build --release
+.venv/bin/python scripts/paper_cosim.py "$@"

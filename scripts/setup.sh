@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Set up a fresh Debian machine for this project: system libraries, the Python test environment.
+# Idempotent; safe to run again. Rust (stable, via rustup) is expected on the machine.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+need_apt=()
+# libclang: bindgen in fmi-sys (the `fmi` importer used by the Rust integration tests).
+# fontconfig/freetype: PNG plots with text (plotters).
+for pkg in libclang-dev libfontconfig1-dev libfreetype-dev pkg-config; do
+    dpkg -s "$pkg" >/dev/null 2>&1 || need_apt+=("$pkg")
+done
+if ((${#need_apt[@]})); then
+    SUDO=""
+    [ "$(id -u)" = 0 ] || SUDO="sudo"
+    $SUDO apt-get update -qq
+    $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need_apt[@]}" >/dev/null
+fi
+
+if [ ! -x .venv/bin/python ]; then
+    python3 -m venv .venv
+fi
+.venv/bin/python -m pip install -q --disable-pip-version-check -r tests/python/requirements.txt

@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Set up and run every test: formatting, lints, Rust unit/property/integration tests, Python tests with FMPy.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+
+echo "== cargo fmt --check"
+cargo fmt --check
+echo "== cargo clippy"
+cargo clippy --all-targets -- -D warnings
+echo "== cargo build --release (both FMUs and the CLI)"
+cargo build --release
+echo "== cargo test --release"
+cargo test --release
+echo "== pytest"
+.venv/bin/python -m pytest -q tests/python

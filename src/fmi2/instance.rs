@@ -1,0 +1,541 @@
+//! An FMU instance: the state machine, argument checks, logging and FMU state, for any [`Model`].
+//!
+//! Everything here is safe Rust; the C boundary (pointers, catch_unwind) is in `exports`.
+//! Every refused call returns `Err(reason)`; the caller logs the reason under `logStatusError`, returns
+//! fmi2Error and, as the standard prescribes for fmi2Error, puts the instance in the `error` state, from which
+//! only getters, fmi2Reset, fmi2SetFMUstate and fmi2FreeInstance lead on.
+
+use super::Model;
+use super::ffi::{Fmi2CallbackFunctions, Fmi2Status};
+use super::state::{Call, State};
+use super::vars::{Causality, Start, Value, VarInfo, VarType, Variability};
+use serde::{Deserialize, Serialize};
+use std::ffi::{CStr, CString};
+
+/// Relative tolerance for "a whole number of sample periods" and for matching communication points.
+pub const STEP_TOLERANCE: f64 = 1e-6;
+
+/// Tag at the start of every saved or serialised FMU state.
+const STATE_FORMAT: &str = "backlash-fmu-state/1";
+
+/// What the layer itself keeps besides the model (saved with it in an FMU state).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LayerState {
+    pub state: State,
+    pub start_time: f64,
+    pub stop_time: Option<f64>,
+    /// Samples advanced since fmi2ExitInitializationMode.
+    pub samples: u64,
+}
+
+impl LayerState {
+    fn new() -> Self {
+        Self {
+            state: State::Instantiated,
+            start_time: 0.0,
+            stop_time: None,
+            samples: 0,
+        }
+    }
+}
+
+/// The object-safe face of a model, so that one instance type serves every FMU.
+pub trait Slave: Send {
+    fn identifier(&self) -> &'static str;
+    fn guid(&self) -> &'static str;
+    fn log_categories(&self) -> &'static [&'static str];
+    fn variables(&self) -> &'static [VarInfo];
+    fn max_samples_per_step(&self) -> Option<u64>;
+    fn get(&self, index: usize) -> Value;
+    fn set(&mut self, index: usize, value: Value);
+    fn exit_initialization(&mut self) -> Result<(), String>;
+    fn sample_period(&self) -> f64;
+    fn step(&mut self, n: u64) -> Result<(), String>;
+    /// A fresh model at its start values.
+    fn reset(&mut self);
+    fn save(&self, layer: &LayerState) -> Result<Vec<u8>, String>;
+    fn restore(&mut self, bytes: &[u8]) -> Result<LayerState, String>;
+    /// Check that `bytes` is a state of this model without applying it.
+    fn check_state(&self, bytes: &[u8]) -> Result<(), String>;
+}
+
+/// The generic adapter from [`Model`] to [`Slave`].
+pub struct Adapter<M: Model>(pub M);
+
+#[derive(Serialize)]
+struct EnvelopeRef<'a, M> {
+    format: &'a str,
+    guid: &'a str,
+    layer: &'a LayerState,
+    model: &'a M,
+}
+
+#[derive(Deserialize)]
+struct Envelope<M> {
+    format: String,
+    guid: String,
+    layer: LayerState,
+    model: M,
+}
+
+#[derive(Deserialize)]
+struct Header {
+    format: String,
+    guid: String,
+}
+
+fn check_header(bytes: &[u8], guid: &str, model: &str) -> Result<(), String> {
+    let h: Header = serde_json::from_slice(bytes)
+        .map_err(|e| format!("the FMU state is truncated or corrupted ({e})"))?;
+    if h.format != STATE_FORMAT {
+        return Err(format!(
+            "the FMU state has format '{}', expected '{STATE_FORMAT}'",
+            h.format
+        ));
+    }
+    if h.guid != guid {
+        return Err(format!(
+            "the FMU state belongs to another FMU (GUID {}), not to {model} (GUID {guid})",
+            h.guid
+        ));
+    }
+    Ok(())
+}
+
+/// A model at its XML start values.
+fn fresh<M: Model>() -> M {
+    let mut m = M::new();
+    for (i, v) in M::VARIABLES.iter().enumerate() {
+        let value = match v.start {
+            Start::None => continue,
+            Start::Real(x) => Value::Real(x),
+            Start::Integer(x) => Value::Integer(x),
+            Start::Boolean(x) => Value::Boolean(x),
+            Start::String(x) => Value::String(x.to_string()),
+        };
+        m.set(M::var(i), value);
+    }
+    m
+}
+
+impl<M: Model> Adapter<M> {
+    pub fn new() -> Self {
+        Self(fresh::<M>())
+    }
+}
+
+impl<M: Model> Default for Adapter<M> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<M: Model> Slave for Adapter<M> {
+    fn identifier(&self) -> &'static str {
+        M::MODEL_IDENTIFIER
+    }
+    fn guid(&self) -> &'static str {
+        M::GUID
+    }
+    fn log_categories(&self) -> &'static [&'static str] {
+        M::LOG_CATEGORIES
+    }
+    fn variables(&self) -> &'static [VarInfo] {
+        M::VARIABLES
+    }
+    fn max_samples_per_step(&self) -> Option<u64> {
+        M::MAX_SAMPLES_PER_STEP
+    }
+    fn get(&self, index: usize) -> Value {
+        self.0.get(M::var(index))
+    }
+    fn set(&mut self, index: usize, value: Value) {
+        self.0.set(M::var(index), value)
+    }
+    fn exit_initialization(&mut self) -> Result<(), String> {
+        self.0.exit_initialization()
+    }
+    fn sample_period(&self) -> f64 {
+        self.0.sample_period()
+    }
+    fn step(&mut self, n: u64) -> Result<(), String> {
+        self.0.step(n)
+    }
+    fn reset(&mut self) {
+        self.0 = fresh::<M>();
+    }
+    fn save(&self, layer: &LayerState) -> Result<Vec<u8>, String> {
+        serde_json::to_vec(&EnvelopeRef {
+            format: STATE_FORMAT,
+            guid: M::GUID,
+            layer,
+            model: &self.0,
+        })
+        .map_err(|e| format!("cannot save the FMU state: {e}"))
+    }
+    fn restore(&mut self, bytes: &[u8]) -> Result<LayerState, String> {
+        check_header(bytes, M::GUID, M::MODEL_IDENTIFIER)?;
+        let env: Envelope<M> = serde_json::from_slice(bytes)
+            .map_err(|e| format!("the FMU state is truncated or corrupted ({e})"))?;
+        debug_assert!(env.format == STATE_FORMAT && env.guid == M::GUID);
+        self.0 = env.model;
+        Ok(env.layer)
+    }
+    fn check_state(&self, bytes: &[u8]) -> Result<(), String> {
+        check_header(bytes, M::GUID, M::MODEL_IDENTIFIER)?;
+        serde_json::from_slice::<Envelope<M>>(bytes)
+            .map(|_| ())
+            .map_err(|e| format!("the FMU state is truncated or corrupted ({e})"))
+    }
+}
+
+/// A saved FMU state: a deep, pointer-free copy (the serialised bytes themselves).
+pub struct SavedState {
+    pub bytes: Vec<u8>,
+}
+
+/// Log categories the instance can switch on.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct LogSwitches {
+    pub errors: bool,
+    pub warnings: bool,
+    pub calls: bool,
+}
+
+/// One FMU instance.
+pub struct Instance {
+    pub name: CString,
+    callbacks: Fmi2CallbackFunctions,
+    pub logging_on: bool,
+    pub log: LogSwitches,
+    pub layer: LayerState,
+    pub slave: Box<dyn Slave>,
+    /// Strings handed out by fmi2GetString stay valid until the next call.
+    string_buffer: Vec<CString>,
+}
+
+// The callbacks hold raw pointers owned by the importer; the standard lets the importer call an instance from
+// any thread as long as calls are not concurrent, so the instance may move between threads.
+unsafe impl Send for Instance {}
+
+fn cstring(text: &str) -> CString {
+    CString::new(text.replace('\0', " ")).unwrap_or_default()
+}
+
+impl Instance {
+    pub fn new(
+        name: &str,
+        callbacks: Fmi2CallbackFunctions,
+        logging_on: bool,
+        slave: Box<dyn Slave>,
+    ) -> Self {
+        Self {
+            name: cstring(name),
+            callbacks,
+            logging_on,
+            log: LogSwitches {
+                errors: true,
+                warnings: true,
+                calls: false,
+            },
+            layer: LayerState::new(),
+            slave,
+            string_buffer: Vec::new(),
+        }
+    }
+
+    /// Send one message to the importer's logger, with "%s" as the format.
+    pub fn emit(&self, status: Fmi2Status, category: &str, text: &str) {
+        emit_raw(&self.callbacks, &self.name, status, category, text);
+    }
+
+    /// Log a refused call under logStatusError (always on: the importer needs the reason).
+    pub fn log_error(&self, call: Call, reason: &str) {
+        if self.log.errors {
+            self.emit(
+                Fmi2Status::Error,
+                "logStatusError",
+                &format!("{}: {reason}", call.name()),
+            );
+        }
+    }
+
+    pub fn log_call(&self, call: Call, args: impl FnOnce() -> String) {
+        if self.logging_on && self.log.calls {
+            self.emit(
+                Fmi2Status::Ok,
+                "logCalls",
+                &format!("{}({})", call.name(), args()),
+            );
+        }
+    }
+
+    /// Refuse a call the state machine does not allow, with a reason that names the call and the state.
+    pub fn check_state(&self, call: Call) -> Result<(), String> {
+        if call.allowed_in(self.layer.state) {
+            Ok(())
+        } else {
+            Err(format!(
+                "illegal call in state '{}' of instance '{}'",
+                self.layer.state.name(),
+                self.name.to_string_lossy()
+            ))
+        }
+    }
+
+    pub fn time(&self) -> f64 {
+        self.layer.start_time + self.layer.samples as f64 * self.slave.sample_period()
+    }
+
+    pub fn set_debug_logging(&mut self, on: bool, categories: &[String]) -> Result<(), String> {
+        let known = self.slave.log_categories();
+        for c in categories {
+            if !known.contains(&c.as_str()) {
+                return Err(format!(
+                    "unknown log category '{c}' (declared: {})",
+                    known.join(", ")
+                ));
+            }
+        }
+        self.logging_on = on;
+        let all = categories.is_empty() || categories.iter().any(|c| c == "logAll");
+        let has = |n: &str| all || categories.iter().any(|c| c == n);
+        // logStatusError stays on whatever is asked: refusals always carry their reason.
+        self.log = LogSwitches {
+            errors: true,
+            warnings: !on || has("logStatusWarning"),
+            calls: on && has("logCalls"),
+        };
+        Ok(())
+    }
+
+    pub fn setup_experiment(
+        &mut self,
+        tolerance_defined: bool,
+        tolerance: f64,
+        start: f64,
+        stop_defined: bool,
+        stop: f64,
+    ) -> Result<(), String> {
+        if !start.is_finite() {
+            return Err(format!("startTime {start} is not finite"));
+        }
+        if tolerance_defined && !(tolerance.is_finite() && tolerance > 0.0) {
+            return Err(format!("tolerance {tolerance} must be finite and > 0"));
+        }
+        if stop_defined && !(stop.is_finite() && stop >= start) {
+            return Err(format!(
+                "stopTime {stop} must be finite and >= startTime {start}"
+            ));
+        }
+        self.layer.start_time = start;
+        self.layer.stop_time = stop_defined.then_some(stop);
+        Ok(())
+    }
+
+    pub fn enter_initialization(&mut self) -> Result<(), String> {
+        self.layer.state = State::InitializationMode;
+        Ok(())
+    }
+
+    pub fn exit_initialization(&mut self) -> Result<(), String> {
+        let ts = self.slave.sample_period();
+        if !(ts.is_finite() && ts > 0.0) {
+            return Err(format!("parameter Ts = {ts} must be finite and > 0"));
+        }
+        self.slave.exit_initialization()?;
+        self.layer.samples = 0;
+        self.layer.state = State::StepComplete;
+        Ok(())
+    }
+
+    pub fn terminate(&mut self) -> Result<(), String> {
+        self.layer.state = State::Terminated;
+        Ok(())
+    }
+
+    pub fn reset(&mut self) -> Result<(), String> {
+        self.slave.reset();
+        self.layer = LayerState::new();
+        self.string_buffer.clear();
+        Ok(())
+    }
+
+    /// Index of the variable with value reference `vr` and type `ty`.
+    fn lookup(&self, ty: VarType, vr: u32) -> Result<usize, String> {
+        self.slave
+            .variables()
+            .iter()
+            .position(|v| v.vr == vr && v.ty == ty)
+            .ok_or_else(|| {
+                format!(
+                    "unknown value reference {vr} for type {} in {}",
+                    ty.name(),
+                    self.slave.identifier()
+                )
+            })
+    }
+
+    fn lookup_all(&self, ty: VarType, vrs: &[u32]) -> Result<Vec<usize>, String> {
+        vrs.iter().map(|&vr| self.lookup(ty, vr)).collect()
+    }
+
+    /// Values of the variables `vrs` of type `ty`, all or nothing.
+    pub fn get(&mut self, ty: VarType, vrs: &[u32]) -> Result<Vec<Value>, String> {
+        let idx = self.lookup_all(ty, vrs)?;
+        Ok(idx.into_iter().map(|i| self.slave.get(i)).collect())
+    }
+
+    /// Hand out C strings that live until the next fmi2GetString.
+    pub fn keep_strings(&mut self, values: &[Value]) -> &[CString] {
+        self.string_buffer = values
+            .iter()
+            .map(|v| match v {
+                Value::String(s) => cstring(s),
+                _ => CString::default(),
+            })
+            .collect();
+        &self.string_buffer
+    }
+
+    /// Set variables: every value is checked before any is applied.
+    pub fn set(&mut self, ty: VarType, vrs: &[u32], values: Vec<Value>) -> Result<(), String> {
+        debug_assert_eq!(vrs.len(), values.len());
+        let idx = self.lookup_all(ty, vrs)?;
+        let state = self.layer.state;
+        for (&i, value) in idx.iter().zip(&values) {
+            let v = &self.slave.variables()[i];
+            match v.causality {
+                Causality::Output => {
+                    return Err(format!("'{}' is an output and cannot be set", v.name));
+                }
+                Causality::Parameter
+                    if v.variability == Variability::Fixed
+                        && !matches!(state, State::Instantiated | State::InitializationMode) =>
+                {
+                    return Err(format!(
+                        "parameter '{}' is fixed: set it before fmi2ExitInitializationMode",
+                        v.name
+                    ));
+                }
+                _ => {}
+            }
+            if let Value::Real(x) = value
+                && !x.is_finite()
+            {
+                return Err(format!("'{}' = {x} is not a finite number", v.name));
+            }
+            let x = value.as_real();
+            if matches!(value, Value::Real(_) | Value::Integer(_)) {
+                if let Some(lo) = v.min
+                    && x < lo
+                {
+                    return Err(format!("'{}' = {x} is below its minimum {lo}", v.name));
+                }
+                if let Some(hi) = v.max
+                    && x > hi
+                {
+                    return Err(format!("'{}' = {x} is above its maximum {hi}", v.name));
+                }
+            }
+        }
+        for (i, value) in idx.into_iter().zip(values) {
+            self.slave.set(i, value);
+        }
+        Ok(())
+    }
+
+    /// Advance from `t` by `h`: a whole number of sample periods, with the inputs held.
+    pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), String> {
+        let ts = self.slave.sample_period();
+        let now = self.time();
+        if !t.is_finite() || !h.is_finite() {
+            return Err(format!(
+                "currentCommunicationPoint {t} and communicationStepSize {h} must be finite"
+            ));
+        }
+        if h <= 0.0 {
+            return Err(format!("communicationStepSize {h} must be > 0"));
+        }
+        if (t - now).abs() > STEP_TOLERANCE * ts + 1e-12 * now.abs() {
+            return Err(format!(
+                "currentCommunicationPoint {t} is not the instance's time {now} (the end of the previous step)"
+            ));
+        }
+        let n = (h / ts).round();
+        if n < 1.0 || (h - n * ts).abs() > STEP_TOLERANCE * h.max(ts) {
+            return Err(format!(
+                "communicationStepSize {h} is not a whole number of sample periods Ts = {ts} \
+                 (relative tolerance {STEP_TOLERANCE})"
+            ));
+        }
+        if n > 1e12 {
+            return Err(format!(
+                "communicationStepSize {h} spans {n} samples, more than 1e12"
+            ));
+        }
+        let n = n as u64;
+        if let Some(max) = self.slave.max_samples_per_step()
+            && n > max
+        {
+            return Err(format!(
+                "{} takes at most {max} sample(s) per communication step; communicationStepSize {h} spans {n} \
+                 samples of Ts = {ts}",
+                self.slave.identifier()
+            ));
+        }
+        if let Some(stop) = self.layer.stop_time {
+            let end = now + n as f64 * ts;
+            if end > stop + STEP_TOLERANCE * ts {
+                return Err(format!(
+                    "the step would end at {end}, after the stopTime {stop} set in fmi2SetupExperiment"
+                ));
+            }
+        }
+        self.slave.step(n)?;
+        self.layer.samples += n;
+        Ok(())
+    }
+
+    pub fn save_state(&self) -> Result<SavedState, String> {
+        Ok(SavedState {
+            bytes: self.slave.save(&self.layer)?,
+        })
+    }
+
+    pub fn restore_state(&mut self, saved: &SavedState) -> Result<(), String> {
+        let layer = self.slave.restore(&saved.bytes)?;
+        self.layer = layer;
+        Ok(())
+    }
+
+    pub fn check_state_bytes(&self, bytes: &[u8]) -> Result<(), String> {
+        self.slave.check_state(bytes)
+    }
+}
+
+/// Log through the importer's logger, if it gave one, with "%s" as the format and `text` as its argument.
+pub fn emit_raw(
+    callbacks: &Fmi2CallbackFunctions,
+    instance: &CStr,
+    status: Fmi2Status,
+    category: &str,
+    text: &str,
+) {
+    if let Some(logger) = callbacks.logger {
+        let category = cstring(category);
+        let text = cstring(text);
+        // SAFETY: the logger is the importer's C function; all strings are NUL-terminated and outlive the
+        // call; "%s" consumes exactly the one string argument passed.
+        unsafe {
+            logger(
+                callbacks.component_environment,
+                instance.as_ptr(),
+                status as super::ffi::Fmi2StatusC,
+                category.as_ptr(),
+                c"%s".as_ptr(),
+                text.as_ptr(),
+            );
+        }
+    }
+}

@@ -1,0 +1,59 @@
+"""Shared fixtures: where the built FMUs and the CLI are."""
+import os
+import pathlib
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+FMU_DIR = pathlib.Path(os.environ.get("BACKLASH_FMU_DIR", ROOT / "target" / "fmu"))
+CLI = pathlib.Path(os.environ.get("BACKLASH_CLI", ROOT / "target" / "release" / "backlash"))
+
+
+class Log:
+    """Records what the FMUs log.
+
+    fmpy formats the variadic C message in a native proxy that keeps ONE global pointer to the last Python
+    logger registered; a logger that is garbage-collected leaves that pointer dangling. So the tests share
+    this one instance for the whole session (LOG below) and pass its callbacks to every FMU they instantiate.
+    """
+
+    def __init__(self):
+        from ctypes import byref
+
+        from fmpy.fmi2 import defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+        from fmpy.logging import addLoggerProxy
+
+        self.lines = []
+        self._fn = fmi2CallbackLoggerTYPE(self._record)
+        self.callbacks = fmi2CallbackFunctions()
+        self.callbacks.logger = self._fn
+        self.callbacks.allocateMemory = defaultCallbacks.allocateMemory
+        self.callbacks.freeMemory = defaultCallbacks.freeMemory
+        addLoggerProxy(byref(self.callbacks))
+
+    def _record(self, env, name, status, category, message):
+        self.lines.append((status, category.decode(), message.decode()))
+
+
+LOG = Log()
+
+
+def _need(path):
+    if not path.exists():
+        pytest.fail(f"{path} is missing: run `cargo build --release` first")
+    return str(path)
+
+
+@pytest.fixture(scope="session")
+def plant_fmu():
+    return _need(FMU_DIR / "BacklashPlant.fmu")
+
+
+@pytest.fixture(scope="session")
+def estimator_fmu():
+    return _need(FMU_DIR / "MrgiaEstimator.fmu")
+
+
+@pytest.fixture(scope="session")
+def cli():
+    return _need(CLI)

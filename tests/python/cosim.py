@@ -1,0 +1,173 @@
+"""A small co-simulation master for the plant + estimator pair, on fmpy's FMU2Slave.
+
+Wiring (../shared/CONTRACT.md): at t_k = k*Ts the same input u(k) goes to plant.u and estimator.u, and the
+plant's output y(k) (which depends on inputs up to u(k-delay) only: no direct feedthrough) goes to
+estimator.y. The communication step from t_k then advances both by one sample: after it the estimator's
+outputs are the estimates after sample k, and the plant's output is y(k+1).
+
+    k = 0 .. n-1:
+        y(k)        = plant.y                     (read before the step)
+        plant.u     = estimator.u = u(k);  estimator.y = y(k)
+        plant.doStep(t_k, Ts);  estimator.doStep(t_k, Ts)
+        estimates after sample k = estimator.a1 .. c2, y_hat, e, updating
+
+Used by the tests as the reference master that other importers (fmpy's container FMU, libcosim) are compared
+against.
+"""
+import shutil
+
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+ESTIMATE_NAMES = ("a1", "a2", "a3", "a4", "b0", "b1", "b2", "b3", "b4", "m2", "c1", "c2")
+CHECKED = ("a1", "a2", "b0", "m2", "c1", "c2")
+PAPER_TRUTH = {"a1": 0.45, "a2": 0.55, "b0": 0.8, "m2": 1.5, "c1": 0.5, "c2": 1.0}
+PAPER_INPUT_VARIANCE = 1.93
+
+
+def paper_input(n, seed):
+    """White input uniform on [-A, A] with variance 1.93 (paper 000, section 4): A = sqrt(3 * 1.93)."""
+    a = np.sqrt(3.0 * PAPER_INPUT_VARIANCE)
+    return np.random.default_rng(seed).uniform(-a, a, n)
+
+
+def max_rel_error(est_row, truth=None, names=ESTIMATE_NAMES):
+    """Largest |estimate - truth| / |truth| over a1, a2, b0, m2, c1, c2.
+
+    est_row is either a mapping name -> value or a sequence ordered as `names` (default ESTIMATE_NAMES).
+    """
+    truth = PAPER_TRUTH if truth is None else truth
+    if not hasattr(est_row, "keys"):
+        est_row = dict(zip(names, est_row))
+    return max(abs(est_row[k] - truth[k]) / abs(truth[k]) for k in CHECKED)
+
+
+def _callbacks(callbacks):
+    if callbacks is not None:
+        return callbacks
+    from conftest import LOG  # lazily: the one session-wide logger (see conftest.Log)
+
+    return LOG.callbacks
+
+
+class _Slave:
+    """An instantiated FMU2Slave with its variables by name."""
+
+    def __init__(self, path, instance_name, callbacks):
+        self.md = read_model_description(path)
+        self.vars = {v.name: v for v in self.md.modelVariables}
+        self.unzipdir = extract(path)
+        self.instantiated = False
+        try:
+            self.fmu = FMU2Slave(
+                guid=self.md.guid,
+                unzipDirectory=self.unzipdir,
+                modelIdentifier=self.md.coSimulation.modelIdentifier,
+                instanceName=instance_name,
+            )
+            self.fmu.instantiate(callbacks=callbacks)
+        except Exception:
+            shutil.rmtree(self.unzipdir, ignore_errors=True)
+            raise
+        self.instantiated = True
+
+    def vr(self, name):
+        return self.vars[name].valueReference
+
+    def set_start(self, values):
+        for name, value in (values or {}).items():
+            v = self.vars[name]
+            if v.type == "Real":
+                self.fmu.setReal([v.valueReference], [float(value)])
+            elif v.type in ("Integer", "Enumeration"):
+                self.fmu.setInteger([v.valueReference], [int(value)])
+            elif v.type == "Boolean":
+                self.fmu.setBoolean([v.valueReference], [bool(value)])
+            elif v.type == "String":
+                self.fmu.setString([v.valueReference], [str(value)])
+            else:
+                raise TypeError(f"{name}: unsupported type {v.type}")
+
+    def free(self):
+        try:
+            if self.instantiated:
+                self.fmu.freeInstance()
+        finally:
+            self.instantiated = False
+            shutil.rmtree(self.unzipdir, ignore_errors=True)
+
+
+def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None, ts=1.0, record_every=1,
+             checkpoints=None, callbacks=None, plant_events=None):
+    """Co-simulate plant and estimator over the samples u (one communication step of ts per sample).
+
+    Returns a dict of numpy arrays:
+      'y'         plant output y(k), k = 0..n-1 (what the estimator received as sample k)
+      'samples'   the sample counts (k + 1) at which the estimator outputs were recorded: every
+                  `record_every` samples (the last sample always included), or exactly `checkpoints`
+      'estimates' rows [a1, a2, a3, a4, b0..b4, m2, c1, c2] after that many samples
+      'updating', 'y_hat', 'e'   the estimator's other outputs at the same points
+      'names'     the column names of 'estimates'
+    `plant_events` maps a sample index k to {name: value} set on the plant before it reads u(k) (tunable
+    parameters such as c1, c2: a wear step in the middle of a run).
+    """
+    u = np.asarray(u, dtype=float)
+    n = len(u)
+    if checkpoints is not None:
+        want = sorted({int(c) for c in checkpoints})
+        if want and (want[0] < 1 or want[-1] > n):
+            raise ValueError(f"checkpoints must lie in 1..{n}")
+    else:
+        want = sorted(set(range(record_every, n + 1, record_every)) | ({n} if n else set()))
+    want_set = set(want)
+    cb = _callbacks(callbacks)
+    plant = est = None
+    try:
+        plant = _Slave(plant_fmu, "plant", cb)
+        est = _Slave(estimator_fmu, "estimator", cb)
+        for s, start in ((plant, plant_start), (est, estimator_start)):
+            s.fmu.setupExperiment(startTime=0.0)
+            s.set_start({"Ts": ts, **(start or {})})
+            s.fmu.enterInitializationMode()
+            s.fmu.exitInitializationMode()
+
+        p, e = plant.fmu, est.fmu
+        vr_py, vr_pu = [plant.vr("y")], [plant.vr("u")]
+        vr_eu_ey = [est.vr("u"), est.vr("y")]
+        vr_out = [est.vr(k) for k in ESTIMATE_NAMES] + [est.vr("y_hat"), est.vr("e")]
+        vr_upd = [est.vr("updating")]
+
+        y = np.empty(n)
+        rows, upd = [], []
+        events = {int(k): v for k, v in (plant_events or {}).items()}
+        for k in range(n):
+            t = k * ts
+            if k in events:
+                plant.set_start(events[k])
+            yk = p.getReal(vr_py)[0]
+            y[k] = yk
+            uk = float(u[k])
+            p.setReal(vr_pu, [uk])
+            e.setReal(vr_eu_ey, [uk, yk])
+            p.doStep(t, ts)
+            e.doStep(t, ts)
+            if k + 1 in want_set:
+                rows.append(e.getReal(vr_out))
+                upd.append(e.getBoolean(vr_upd)[0])
+        for s in (p, e):
+            s.terminate()
+        rows = np.array(rows, dtype=float).reshape(len(rows), len(ESTIMATE_NAMES) + 2)
+        return {
+            "y": y,
+            "samples": np.array(want, dtype=int),
+            "estimates": rows[:, : len(ESTIMATE_NAMES)],
+            "y_hat": rows[:, -2],
+            "e": rows[:, -1],
+            "updating": np.array(upd, dtype=bool),
+            "names": list(ESTIMATE_NAMES),
+        }
+    finally:
+        for s in (est, plant):
+            if s is not None:
+                s.free()
