@@ -151,9 +151,8 @@ mod tests {
     }
 
     fn params() -> impl Strategy<Value = BacklashParams> {
-        (0.2f64..3.0, 0.2f64..3.0, 0.0f64..2.0, 0.0f64..2.0).prop_map(|(m1, m2, c1, c2)| {
-            BacklashParams { m1, m2, c1, c2 }
-        })
+        (0.2f64..3.0, 0.2f64..3.0, 0.0f64..2.0, 0.0f64..2.0)
+            .prop_map(|(m1, m2, c1, c2)| BacklashParams { m1, m2, c1, c2 })
     }
 
     proptest! {
