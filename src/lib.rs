@@ -1,9 +1,13 @@
 //! Backlash identification in system-level simulation.
 //!
-//! - [`plant`]: the pseudo-Wiener plant of paper 000 (linear block, backlash, sensor).
-//! - [`identify`]: the estimators (MRGIA of paper 000).
-//! - `fmi2`: one FMI 2.0 co-simulation layer, generic over the model; `fmus`: the two adapters.
+//! - [`plant`]: the physics: the pseudo-Wiener plant of paper 000 (linear block, backlash, sensor), the
+//!   polynomial-border backlash and continuous-time linear block of paper 003.
+//! - [`identify`]: the estimators: MRGIA (paper 000), frequency LS / separable LS (paper 003).
+//! - [`diagnose`]: residual tests that trace a model's error to the effect it lacks.
+//! - [`fmi2`]: one FMI 2.0 co-simulation layer, generic over the model; [`fmus`]: the two adapters.
+//! - [`io`]: validated CSV reading, atomic writing; [`report`]: PNG plots.
 
+pub mod diagnose;
 pub mod fmi2;
 pub mod fmus;
 pub mod identify;

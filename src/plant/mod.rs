@@ -7,7 +7,9 @@
 //! zero before k = 0, so x(0) = 0 and w(0) = 0.
 
 pub mod backlash;
+pub mod continuous;
 pub mod linear;
+pub mod poly;
 
 pub use backlash::{BacklashParams, Mode};
 pub use linear::{Arx, ArxParams, MAX_DELAY, MAX_ORDER};

@@ -260,6 +260,25 @@ fn draw_panel<DB: DrawingBackend>(
     }
 }
 
+/// A compact tick label: at most four significant digits, no trailing zeros, scientific notation for
+/// very large or small magnitudes.
+fn tick(v: f64) -> String {
+    let a = v.abs();
+    if a == 0.0 || !a.is_finite() {
+        return if a == 0.0 { "0".into() } else { format!("{v}") };
+    }
+    if !(1e-3..1e5).contains(&a) {
+        return format!("{v:.2e}");
+    }
+    let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
 /// Runs of consecutive drawable points (a non-drawable point ends a run).
 fn runs(points: &[(f64, f64)], log_x: bool, log_y: bool) -> Vec<Vec<(f64, f64)>> {
     let mut out = vec![Vec::new()];
@@ -303,6 +322,10 @@ where
         .label_style(("sans-serif", 15))
         .axis_desc_style(("sans-serif", 17))
         .light_line_style(RGBColor(235, 235, 235))
+        .x_labels(10)
+        .y_labels(10)
+        .x_label_formatter(&|v| tick(*v))
+        .y_label_formatter(&|v| tick(*v))
         .draw()
         .map_err(|x| e(&x))?;
     let mut any_label = false;
@@ -400,6 +423,17 @@ mod tests {
     }
 
     #[test]
+    fn ticks_are_compact() {
+        assert_eq!(tick(0.30000000000000004), "0.3");
+        assert_eq!(tick(0.0), "0");
+        assert_eq!(tick(-2.5), "-2.5");
+        assert_eq!(tick(1234.5678), "1235");
+        assert_eq!(tick(0.012345), "0.01235");
+        assert_eq!(tick(1e-7), "1.00e-7");
+        assert_eq!(tick(100.0), "100");
+    }
+
+    #[test]
     fn runs_break_at_bad_points() {
         let r = runs(
             &[
@@ -480,5 +514,6 @@ mod tests {
             ),
             Err(PlotError::NoFolder { .. })
         ));
+        let _ = std::fs::remove_dir_all(p.parent().unwrap());
     }
 }

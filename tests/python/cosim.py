@@ -14,11 +14,16 @@ outputs are the estimates after sample k, and the plant's output is y(k+1).
 Used by the tests as the reference master that other importers (fmpy's container FMU, libcosim) are compared
 against.
 """
+import copy
+import pathlib
 import shutil
 
 import numpy as np
 from fmpy import extract, read_model_description
+from fmpy.container_fmu.cli import create_container_fmu
+from fmpy.container_fmu.config import Component, Configuration, Connection
 from fmpy.fmi2 import FMU2Slave
+from fmpy.model_description import CoSimulation, DefaultExperiment, ModelDescription, ModelVariable, Unknown
 
 ESTIMATE_NAMES = ("a1", "a2", "a3", "a4", "b0", "b1", "b2", "b3", "b4", "m2", "c1", "c2")
 CHECKED = ("a1", "a2", "b0", "m2", "c1", "c2")
@@ -171,3 +176,78 @@ def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None
         for s in (est, plant):
             if s is not None:
                 s.free()
+
+
+# --- The pair as one container FMU (fmpy.container_fmu) -------------------------------------------------------
+
+CONTAINER_OUTPUTS = ("a1", "a2", "b0", "m2", "c1", "c2")  # estimator outputs the container exposes
+
+
+def _float64(variable):
+    """A copy of a component's FMI 2 Real variable with type 'Float64', for a container Connection.
+
+    fmpy 0.3.32 writes resources/container.json from the Configuration. For the container's own variables
+    (write_configuration's 'variables') it maps the FMI 2 type names Real -> Float64 and Integer -> Int32, but
+    for a Connection it copies `startConnectors[0].type` verbatim. The container binary deserialises that
+    field into its VariableType enum, which has FMI 3 names only; with the components' own ModelVariables the
+    connection type is 'Real' and the container FMU refuses to instantiate:
+        (3, 'logStatusError', "Failed to read configuration file .../resources/container.json. Failed to parse
+         configuration file: unknown variant `Real`, expected one of `Float32`, `Float64`, `Int8`, ...")
+    The binary then exchanges a 'Float64' connection between FMI 2 components with fmi2GetReal/fmi2SetReal.
+    """
+    v = copy.copy(variable)
+    v.type = "Float64"
+    return v
+
+
+def build_container(plant_fmu, estimator_fmu, unzipdir, filename):
+    plant_fmu, estimator_fmu = pathlib.Path(plant_fmu), pathlib.Path(estimator_fmu)
+    pmd, emd = read_model_description(plant_fmu), read_model_description(estimator_fmu)
+    pv = {v.name: v for v in pmd.modelVariables}
+    ev = {v.name: v for v in emd.modelVariables}
+    # Component.filename's stem names the folder resources/<stem> the component is unpacked to.
+    plant = Component(name="plant", filename=plant_fmu, modelDescription=pmd)
+    est = Component(name="estimator", filename=estimator_fmu, modelDescription=emd)
+
+    def out(name, type_="Real"):
+        return ModelVariable(name=name, type=type_, causality="output", variability="discrete", initial="calculated")
+
+    # The container binary answers value reference 0 with its own time and value reference i >= 1 with the
+    # i-th entry of variableMappings; create_container_fmu numbers modelVariables 0, 1, 2, ... So the first
+    # model variable must be the independent 'time' and the rest must follow variableMappings' order.
+    time_var = ModelVariable(name="time", type="Real", causality="independent", variability="continuous")
+    u = ModelVariable(name="u", type="Real", causality="input", variability="discrete", start="0")
+    mappings = {u: [(plant, pv["u"]), (est, ev["u"])]}  # one container input drives both components' u
+    outputs = [out("y")]
+    mappings[outputs[0]] = [(plant, pv["y"])]
+    for name in CONTAINER_OUTPUTS:
+        v = out(name)
+        mappings[v] = [(est, ev[name])]
+        outputs.append(v)
+    upd = out("updating", "Boolean")  # FMI 2 Boolean outputs map fine (fmi2GetBoolean on the component)
+    mappings[upd] = [(est, ev["updating"])]
+    outputs.append(upd)
+
+    md = ModelDescription(
+        fmiVersion="2.0",
+        modelName="BacklashPair",
+        instantiationToken="{5b0f7c1e-3d1a-4c55-9a43-0b1a5c0e9a11}",
+        description="BacklashPlant + MrgiaEstimator, y -> y, one input u to both",
+        defaultExperiment=DefaultExperiment(startTime="0", stepSize="1"),
+        # fixedInternalStepSize is not written to an FMI 2 modelDescription.xml but goes to container.json as
+        # the container's internal step: it must be the components' Ts (one sample per step).
+        coSimulation=CoSimulation(modelIdentifier="container_fmu", fixedInternalStepSize=1.0),
+        modelVariables=[time_var, u] + outputs,
+        outputs=[Unknown(variable=v) for v in outputs],
+        initialUnknowns=[Unknown(variable=v) for v in outputs],
+    )
+    config = Configuration(
+        parallelDoStep=False,
+        modelDescription=md,
+        components=[plant, est],
+        connections=[Connection(plant, [_float64(pv["y"])], est, [_float64(ev["y"])])],
+        variableMappings=mappings,
+    )
+    unzipdir.mkdir(parents=True, exist_ok=True)  # create_container_fmu removes and recreates it
+    create_container_fmu(config, unzipdir, filename)
+    return filename

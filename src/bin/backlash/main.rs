@@ -2,6 +2,7 @@
 //!
 //! One file per command; no logic here beyond parsing and printing (the library does the work).
 
+mod frequency;
 mod identify;
 mod simulate;
 
@@ -25,12 +26,17 @@ enum Command {
     /// Identify a backlash model from a data file.
     #[command(subcommand)]
     Identify(IdentifyCommand),
+    /// Run sine experiments on a simulated plant (continuous block + polynomial-border backlash) at several
+    /// frequencies, identify each with paper 003's estimators, and plot |G(jw)| and the borders.
+    Experiment(frequency::ExperimentArgs),
 }
 
 #[derive(Subcommand)]
 enum IdentifyCommand {
     /// Recursive MRGIA estimator of paper 000 (the same code as MrgiaEstimator.fmu).
     Mrgia(identify::MrgiaArgs),
+    /// Frequency identification of paper 003 from one sine experiment (u = U cos(w t)).
+    Frequency(frequency::IdentifyFrequencyArgs),
 }
 
 fn main() {
@@ -38,6 +44,8 @@ fn main() {
     let result = match &cli.command {
         Command::Simulate(a) => simulate::run(a),
         Command::Identify(IdentifyCommand::Mrgia(a)) => identify::run_mrgia(a),
+        Command::Identify(IdentifyCommand::Frequency(a)) => frequency::run_identify(a),
+        Command::Experiment(a) => frequency::run_experiment(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

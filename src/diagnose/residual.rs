@@ -1,0 +1,687 @@
+//! Tests that trace a residual to its cause.
+//!
+//! Each function takes the residual e(k) = y(k) - y_model(k) of a fitted model (and, where needed, the input
+//! and the model's internal signals) and returns a statistic with its threshold, so that a report can say
+//! "this test rejects at 95%, here is the evidence". All thresholds are two-sided 95% unless said otherwise.
+//!
+//! | test | what it sees | effects it points to |
+//! | --- | --- | --- |
+//! | [`ljung_box`] | autocorrelation of e | coloured-noise, linear-order, periodic-disturbance |
+//! | [`cross_correlation`] | e against past inputs | extra-delay, linear-order |
+//! | [`billings`] | higher-order correlations (Billings and Voon, 1986) | unmodelled nonlinearity: curved-borders, friction, saturation |
+//! | [`by_mode`] | e conditioned on up / down / held | friction (held and just-engaged samples), gap errors |
+//! | [`since_reversal`] | e against time since the last reversal | friction (elastic unloading after a reversal) |
+//! | [`against_x`] | e against x_hat and x_hat^2 on the borders | curved-borders |
+//! | [`drift`] | CUSUM and split-sample means by mode | gap-drift |
+//! | [`spectrum_peak`] | periodogram peak against the median level | periodic-disturbance |
+//! | [`lattice`] | the values of y on a grid q k + o | quantization |
+//! | [`clipping`] | runs of y at its extremes | saturation |
+
+use crate::plant::Mode;
+use serde::Serialize;
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+/// z for a two-sided 95% band.
+pub const Z95: f64 = 1.959_963_984_540_054;
+
+fn mean(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        0.0
+    } else {
+        x.iter().sum::<f64>() / x.len() as f64
+    }
+}
+
+fn centred(x: &[f64]) -> Vec<f64> {
+    let m = mean(x);
+    x.iter().map(|v| v - m).collect()
+}
+
+fn norm(x: &[f64]) -> f64 {
+    x.iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
+/// Normalised correlation sum_k a(k) b(k - lag) / (|a| |b|) of centred series, lag >= 0.
+fn corr_at(a: &[f64], b: &[f64], lag: usize) -> f64 {
+    let (na, nb) = (norm(a), norm(b));
+    if na == 0.0 || nb == 0.0 || lag >= a.len() {
+        return 0.0;
+    }
+    let s: f64 = (lag..a.len()).map(|k| a[k] * b[k - lag]).sum();
+    s / (na * nb)
+}
+
+/// Autocorrelation r(1..=lags) of the centred series.
+pub fn autocorrelation(x: &[f64], lags: usize) -> Vec<f64> {
+    let c = centred(x);
+    (1..=lags).map(|l| corr_at(&c, &c, l)).collect()
+}
+
+/// A test statistic against its threshold.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Verdict {
+    pub name: &'static str,
+    pub statistic: f64,
+    pub threshold: f64,
+    /// The statistic exceeds the threshold: the model is missing something this test sees.
+    pub rejects: bool,
+    pub detail: String,
+}
+
+/// Ljung-Box portmanteau test of whiteness: Q = N (N + 2) sum_{l=1..L} r_l^2 / (N - l), against the 95%
+/// quantile of chi-square with L degrees of freedom. An empty or constant residual is white (Q = 0).
+pub fn ljung_box(e: &[f64], lags: usize) -> Verdict {
+    let n = e.len() as f64;
+    let lags = lags.clamp(1, e.len().saturating_sub(2).max(1));
+    let r = autocorrelation(e, lags);
+    let q: f64 = n
+        * (n + 2.0)
+        * r.iter()
+            .enumerate()
+            .map(|(i, ri)| ri * ri / (n - (i + 1) as f64).max(1.0))
+            .sum::<f64>();
+    let threshold = chi2_quantile(0.95, lags as f64);
+    let (imax, rmax) = r.iter().enumerate().fold((0, 0.0f64), |acc, (i, v)| {
+        if v.abs() > acc.1.abs() { (i, *v) } else { acc }
+    });
+    Verdict {
+        name: "ljung-box",
+        statistic: q,
+        threshold,
+        rejects: q > threshold,
+        detail: format!(
+            "Q = {q:.1} over {lags} lags (chi-square 95%: {threshold:.1}); largest autocorrelation {rmax:.3} at lag {}",
+            imax + 1
+        ),
+    }
+}
+
+/// The p-quantile of chi-square with `df` degrees of freedom.
+pub fn chi2_quantile(p: f64, df: f64) -> f64 {
+    ChiSquared::new(df.max(1e-9))
+        .map(|d| d.inverse_cdf(p))
+        .unwrap_or(f64::INFINITY)
+}
+
+/// Cross-correlation of the residual with past inputs, r_eu(lag) = corr(e(k), u(k - lag)) for lag 0..=lags,
+/// with the 95% band +-1.96/sqrt(N) of a white residual independent of u.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct CrossCorrelation {
+    pub lags: Vec<usize>,
+    pub r: Vec<f64>,
+    pub band: f64,
+    /// Lags whose |r| exceeds the band.
+    pub outside: Vec<usize>,
+    pub verdict: Verdict,
+}
+
+pub fn cross_correlation(e: &[f64], u: &[f64], lags: usize) -> CrossCorrelation {
+    let (ec, uc) = (centred(e), centred(u));
+    let r: Vec<f64> = (0..=lags).map(|l| corr_at(&ec, &uc, l)).collect();
+    let band = Z95 / (e.len().max(1) as f64).sqrt();
+    let outside: Vec<usize> = (0..=lags).filter(|&l| r[l].abs() > band).collect();
+    // Under independence about 5% of lags fall outside by chance: reject when more than a binomial 95% upper
+    // bound do, or when one lag is far outside (|r| > 2 band).
+    let expected = 0.05 * (lags + 1) as f64;
+    let allowed = expected + Z95 * (expected * 0.95).sqrt() + 1.0;
+    let peak = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let rejects = outside.len() as f64 > allowed || peak > 2.0 * band;
+    let statistic = peak / band;
+    CrossCorrelation {
+        lags: (0..=lags).collect(),
+        verdict: Verdict {
+            name: "residual-input cross-correlation",
+            statistic,
+            threshold: 2.0,
+            rejects,
+            detail: format!(
+                "{} of {} lags outside +-{band:.3}; peak |r| = {peak:.3} ({statistic:.1} bands)",
+                outside.len(),
+                lags + 1
+            ),
+        },
+        r,
+        band,
+        outside,
+    }
+}
+
+/// Billings and Voon (1986) correlation tests for a nonlinear model: with e the residual and u the input,
+/// all of phi_ee(l) (l != 0), phi_ue(l), phi_{u2'e}(l), phi_{u2'e2}(l) and phi_{e(eu)}(l) (l >= 0) should lie
+/// within +-1.96/sqrt(N) when nothing is missing; u2' = u^2 - mean(u^2). Returns each function's largest
+/// |value| in band units and a verdict on the higher-order ones (the three that see nonlinearity).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Billings {
+    pub band: f64,
+    /// (name, values at lags 0..=L).
+    pub functions: Vec<(&'static str, Vec<f64>)>,
+    pub verdict: Verdict,
+}
+
+pub fn billings(e: &[f64], u: &[f64], lags: usize) -> Billings {
+    let n = e.len();
+    let ec = centred(e);
+    let uc = centred(u);
+    let u2: Vec<f64> = centred(&u.iter().map(|v| v * v).collect::<Vec<_>>());
+    let e2: Vec<f64> = centred(&e.iter().map(|v| v * v).collect::<Vec<_>>());
+    // e(k+1) u(k+1) shifted: phi_{e(eu)}(l) = corr(e(k), e(k-1-l) u(k-1-l)).
+    let eu: Vec<f64> = centred(&e.iter().zip(u).map(|(a, b)| a * b).collect::<Vec<_>>());
+    let band = Z95 / (n.max(1) as f64).sqrt();
+    let f = |a: &[f64], b: &[f64], shift: usize| -> Vec<f64> {
+        (0..=lags).map(|l| corr_at(a, b, l + shift)).collect()
+    };
+    let functions = vec![
+        ("phi_ee", f(&ec, &ec, 1)),
+        ("phi_ue", f(&ec, &uc, 0)),
+        ("phi_u2e", f(&ec, &u2, 0)),
+        ("phi_u2e2", f(&e2, &u2, 0)),
+        ("phi_e_eu", f(&ec, &eu, 1)),
+    ];
+    let peak = |v: &Vec<f64>| v.iter().fold(0.0f64, |m, x| m.max(x.abs())) / band;
+    let hoc = functions[2..]
+        .iter()
+        .map(|(_, v)| peak(v))
+        .fold(0.0f64, f64::max);
+    let detail = functions
+        .iter()
+        .map(|(name, v)| format!("{name} {:.1}", peak(v)))
+        .collect::<Vec<_>>()
+        .join(", ");
+    Billings {
+        band,
+        verdict: Verdict {
+            name: "billings higher-order correlations",
+            statistic: hoc,
+            threshold: 2.0,
+            rejects: hoc > 2.0,
+            detail: format!("largest |phi| in bands: {detail}"),
+        },
+        functions,
+    }
+}
+
+/// Residual statistics of one group of samples.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct GroupStats {
+    pub label: String,
+    pub count: usize,
+    pub mean: f64,
+    pub rms: f64,
+}
+
+fn stats(label: impl Into<String>, v: &[f64]) -> GroupStats {
+    GroupStats {
+        label: label.into(),
+        count: v.len(),
+        mean: mean(v),
+        rms: if v.is_empty() {
+            0.0
+        } else {
+            (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
+        },
+    }
+}
+
+/// The residual by backlash mode of the fitted model. A mode whose mean is more than 1.96 standard errors
+/// (from the overall rms) from zero, or whose rms is twice another's, rejects.
+pub fn by_mode(e: &[f64], modes: &[Mode]) -> (Vec<GroupStats>, Verdict) {
+    let pick = |m: Mode| -> Vec<f64> {
+        e.iter()
+            .zip(modes)
+            .filter(|(_, mm)| **mm == m)
+            .map(|(v, _)| *v)
+            .collect()
+    };
+    let groups = vec![
+        stats("up", &pick(Mode::Up)),
+        stats("down", &pick(Mode::Down)),
+        stats("held", &pick(Mode::Held)),
+    ];
+    let overall = stats("all", e).rms.max(f64::MIN_POSITIVE);
+    let mut worst = 0.0f64;
+    for g in &groups {
+        if g.count > 10 {
+            worst = worst.max(g.mean.abs() / (overall / (g.count as f64).sqrt()));
+        }
+    }
+    let rms: Vec<f64> = groups
+        .iter()
+        .filter(|g| g.count > 10)
+        .map(|g| g.rms)
+        .collect();
+    let ratio = if rms.len() >= 2 {
+        rms.iter().cloned().fold(0.0, f64::max)
+            / rms
+                .iter()
+                .cloned()
+                .fold(f64::INFINITY, f64::min)
+                .max(1e-300)
+    } else {
+        1.0
+    };
+    let detail = groups
+        .iter()
+        .map(|g| {
+            format!(
+                "{}: n {} mean {:.3e} rms {:.3e}",
+                g.label, g.count, g.mean, g.rms
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ");
+    (
+        groups,
+        Verdict {
+            name: "residual by backlash mode",
+            statistic: worst,
+            threshold: 3.0,
+            rejects: worst > 3.0 || ratio > 2.0,
+            detail: format!("{detail}; rms ratio {ratio:.2}"),
+        },
+    )
+}
+
+/// Mode changes of the model's working point: sample indices where it leaves one border for the other
+/// (the last engaged direction changes).
+pub fn reversals(modes: &[Mode]) -> Vec<usize> {
+    let mut last = None;
+    let mut out = Vec::new();
+    for (k, m) in modes.iter().enumerate() {
+        if *m == Mode::Held {
+            continue;
+        }
+        if last.is_some_and(|l| l != *m) {
+            out.push(k);
+        }
+        last = Some(*m);
+    }
+    out
+}
+
+/// The residual against the number of samples since the last direction change of x_hat, in bins of
+/// increasing width (0-1, 2-3, 4-7, ...). Friction shows as a residual pattern right after reversals.
+pub fn since_reversal(e: &[f64], x_hat: &[f64]) -> (Vec<GroupStats>, Verdict) {
+    let mut since = vec![usize::MAX; e.len()];
+    let mut dir = 0i8;
+    let mut count = usize::MAX / 2;
+    for k in 1..x_hat.len() {
+        let d = (x_hat[k] - x_hat[k - 1]).signum() as i8;
+        if d != 0 && d != dir {
+            if dir != 0 {
+                count = 0;
+            }
+            dir = d;
+        } else {
+            count = count.saturating_add(1);
+        }
+        since[k] = count;
+    }
+    let mut bins: Vec<Vec<f64>> = vec![Vec::new(); 8];
+    for (k, s) in since.iter().enumerate() {
+        if *s == usize::MAX || *s >= usize::MAX / 4 {
+            continue;
+        }
+        let b = (usize::BITS - (s + 1).leading_zeros()) as usize - 1;
+        bins[b.min(7)].push(e[k]);
+    }
+    let groups: Vec<GroupStats> = bins
+        .iter()
+        .enumerate()
+        .map(|(b, v)| {
+            stats(
+                format!("{}-{}", (1usize << b) - 1, (1usize << (b + 1)) - 2),
+                v,
+            )
+        })
+        .collect();
+    let overall = stats("all", e).rms.max(f64::MIN_POSITIVE);
+    let worst = groups
+        .iter()
+        .filter(|g| g.count > 10)
+        .map(|g| g.mean.abs() / (overall / (g.count as f64).sqrt()))
+        .fold(0.0, f64::max);
+    (
+        groups,
+        Verdict {
+            name: "residual by time since reversal",
+            statistic: worst,
+            threshold: 3.0,
+            rejects: worst > 3.0,
+            detail: format!("largest bin mean in standard errors: {worst:.1}"),
+        },
+    )
+}
+
+/// Correlation of the residual with x_hat and x_hat^2 on engaged samples (the borders): straight borders
+/// leave none; curved ones leave a quadratic or cubic trend.
+pub fn against_x(e: &[f64], x_hat: &[f64], modes: &[Mode]) -> Verdict {
+    let idx: Vec<usize> = (0..e.len()).filter(|&k| modes[k] != Mode::Held).collect();
+    let ee: Vec<f64> = centred(&idx.iter().map(|&k| e[k]).collect::<Vec<_>>());
+    let x1: Vec<f64> = centred(&idx.iter().map(|&k| x_hat[k]).collect::<Vec<_>>());
+    let x2: Vec<f64> = centred(&idx.iter().map(|&k| x_hat[k] * x_hat[k]).collect::<Vec<_>>());
+    let x3: Vec<f64> = centred(&idx.iter().map(|&k| x_hat[k].powi(3)).collect::<Vec<_>>());
+    let band = Z95 / (idx.len().max(1) as f64).sqrt();
+    let r = [
+        corr_at(&ee, &x1, 0),
+        corr_at(&ee, &x2, 0),
+        corr_at(&ee, &x3, 0),
+    ];
+    let peak = r.iter().fold(0.0f64, |m, v| m.max(v.abs())) / band;
+    Verdict {
+        name: "residual against x_hat on the borders",
+        statistic: peak,
+        threshold: 3.0,
+        rejects: peak > 3.0,
+        detail: format!(
+            "corr with x_hat {:.3}, x_hat^2 {:.3}, x_hat^3 {:.3} (band {band:.3}, {} engaged samples)",
+            r[0],
+            r[1],
+            r[2],
+            idx.len()
+        ),
+    }
+}
+
+/// Drift over the record: the largest excursion of the CUSUM of the residual (standardised: under a
+/// stationary white residual max |S_k| / (sigma sqrt(N)) follows the Kolmogorov distribution, 95% point
+/// 1.358), computed on the residual of each engaged mode separately, since wear moves the up and down
+/// borders in opposite directions and their effects cancel in the overall mean.
+pub fn drift(e: &[f64], modes: &[Mode]) -> Verdict {
+    let mut worst = 0.0f64;
+    let mut detail = Vec::new();
+    for (label, m) in [("up", Mode::Up), ("down", Mode::Down)] {
+        let v: Vec<f64> = e
+            .iter()
+            .zip(modes)
+            .filter(|(_, mm)| **mm == m)
+            .map(|(x, _)| *x)
+            .collect();
+        if v.len() < 20 {
+            continue;
+        }
+        let c = centred(&v);
+        let sigma = (c.iter().map(|x| x * x).sum::<f64>() / c.len() as f64).sqrt();
+        if sigma == 0.0 {
+            continue;
+        }
+        let mut s = 0.0f64;
+        let mut peak = 0.0f64;
+        for x in &c {
+            s += x;
+            peak = peak.max(s.abs());
+        }
+        let stat = peak / (sigma * (c.len() as f64).sqrt());
+        // Split-sample: mean of the last third against the first third.
+        let third = c.len() / 3;
+        let shift = mean(&c[c.len() - third..]) - mean(&c[..third]);
+        detail.push(format!(
+            "{label}: CUSUM {stat:.2}, late - early mean {shift:.3e} ({} samples)",
+            v.len()
+        ));
+        worst = worst.max(stat);
+    }
+    Verdict {
+        name: "drift (CUSUM by mode)",
+        statistic: worst,
+        threshold: 1.358,
+        rejects: worst > 1.358,
+        detail: detail.join("; "),
+    }
+}
+
+/// Periodogram of the residual (FFT, zero-padded to twice the next power of two so that a sinusoid between
+/// Fourier frequencies is not missed), over (0, pi] rad/sample. White-noise ordinates are exponential with
+/// mean = median / ln 2, and the largest of M is about ln M times the mean: a peak above (ln M + 6) / ln 2
+/// times the median rejects (a false alarm probability of about e^-6 per record). Returns the peak's angular
+/// frequency.
+pub fn spectrum_peak(e: &[f64]) -> (f64, Verdict) {
+    use rustfft::{FftPlanner, num_complex::Complex};
+    let c = centred(e);
+    let n = c.len().max(2);
+    let m = (2 * n).next_power_of_two();
+    let mut buf: Vec<Complex<f64>> = c.iter().map(|&x| Complex::new(x, 0.0)).collect();
+    buf.resize(m, Complex::new(0.0, 0.0));
+    FftPlanner::new().plan_fft_forward(m).process(&mut buf);
+    let power: Vec<f64> = buf[1..=m / 2]
+        .iter()
+        .map(|z| z.norm_sqr() / n as f64)
+        .collect();
+    let mut sorted = power.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2].max(f64::MIN_POSITIVE);
+    let (imax, pmax) =
+        power.iter().enumerate().fold(
+            (0, 0.0),
+            |acc, (i, p)| if *p > acc.1 { (i, *p) } else { acc },
+        );
+    let w = 2.0 * std::f64::consts::PI * (imax + 1) as f64 / m as f64;
+    // Independent ordinates: the n/2 Fourier frequencies (padding interpolates between them).
+    let threshold = (((n / 2).max(2) as f64).ln() + 6.0) / std::f64::consts::LN_2;
+    let stat = pmax / median;
+    (
+        w,
+        Verdict {
+            name: "residual spectrum peak",
+            statistic: stat,
+            threshold,
+            rejects: stat > threshold,
+            detail: format!(
+                "peak {stat:.1} x median at {w:.4} rad/sample (period {:.1} samples)",
+                2.0 * std::f64::consts::PI / w
+            ),
+        },
+    )
+}
+
+/// Whether the measured values sit on a lattice q k + o: the step q is the smallest difference between
+/// distinct sorted values that recurs (at least 10% of the distinct gaps are within 1e-9 relative of a whole
+/// multiple of it), and the fraction of values on the lattice must exceed 99%. A continuous sensor has
+/// distinct values with no common step; a quantised one has few distinct values on a grid.
+pub fn lattice(y: &[f64]) -> (Option<f64>, Verdict) {
+    let mut v: Vec<f64> = y.to_vec();
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    let distinct = v.len();
+    let gaps: Vec<f64> = v
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|g| *g > 0.0)
+        .collect();
+    let none = |detail: String| {
+        (
+            None,
+            Verdict {
+                name: "value lattice (quantization)",
+                statistic: distinct as f64 / y.len().max(1) as f64,
+                threshold: 0.5,
+                rejects: false,
+                detail,
+            },
+        )
+    };
+    if gaps.is_empty() || distinct * 2 > y.len() {
+        return none(format!(
+            "{distinct} distinct values in {} samples: no lattice",
+            y.len()
+        ));
+    }
+    let mut sorted_gaps = gaps.clone();
+    sorted_gaps.sort_by(f64::total_cmp);
+    let q = sorted_gaps[sorted_gaps.len() / 10];
+    let scale = v.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(q);
+    let tol = 1e-6 * scale;
+    let on = gaps
+        .iter()
+        .filter(|g| {
+            let r = *g / q;
+            (r - r.round()).abs() * q <= tol
+        })
+        .count();
+    let frac = on as f64 / gaps.len() as f64;
+    if frac < 0.99 {
+        return none(format!(
+            "{distinct} distinct values; gaps are not multiples of a common step ({:.1}% on a {q:.3e} grid)",
+            100.0 * frac
+        ));
+    }
+    (
+        Some(q),
+        Verdict {
+            name: "value lattice (quantization)",
+            statistic: distinct as f64 / y.len() as f64,
+            threshold: 0.5,
+            rejects: true,
+            detail: format!(
+                "{distinct} distinct values in {} samples, all gaps multiples of q = {q:.4e}",
+                y.len()
+            ),
+        },
+    )
+}
+
+/// Clipping at the extremes: the fraction of samples equal (to 1e-9 relative) to the maximum or the minimum
+/// of y. A clean record touches its extremes once; a clipped one sits there in runs.
+pub fn clipping(y: &[f64]) -> (f64, f64, Verdict) {
+    let hi = y.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    let lo = y.iter().cloned().fold(f64::INFINITY, f64::min);
+    let tol = 1e-9 * hi.abs().max(lo.abs()).max(1e-300);
+    let at_hi = y.iter().filter(|v| (*v - hi).abs() <= tol).count();
+    let at_lo = y.iter().filter(|v| (*v - lo).abs() <= tol).count();
+    let n = y.len().max(1) as f64;
+    let frac = (at_hi.max(at_lo)) as f64 / n;
+    (
+        lo,
+        hi,
+        Verdict {
+            name: "clipping at the extremes",
+            statistic: frac,
+            threshold: 0.005,
+            rejects: frac > 0.005 && at_hi.max(at_lo) >= 5,
+            detail: format!(
+                "{at_hi} samples at the maximum {hi:.4}, {at_lo} at the minimum {lo:.4}"
+            ),
+        },
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand_chacha::ChaCha8Rng;
+    use rand_core::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+
+    fn white(n: usize, seed: u64) -> Vec<f64> {
+        let mut r = ChaCha8Rng::seed_from_u64(seed);
+        (0..n).map(|_| StandardNormal.sample(&mut r)).collect()
+    }
+
+    #[test]
+    fn chi2_quantile_matches_tables() {
+        // Tabulated 95% points: df 1: 3.841, df 10: 18.307, df 20: 31.410.
+        assert!((chi2_quantile(0.95, 1.0) - 3.841).abs() < 1e-3);
+        assert!((chi2_quantile(0.95, 10.0) - 18.307).abs() < 1e-3);
+        assert!((chi2_quantile(0.95, 20.0) - 31.410).abs() < 1e-3);
+    }
+
+    #[test]
+    fn ljung_box_accepts_white_and_rejects_coloured() {
+        let mut rejected = 0;
+        for s in 0..100 {
+            rejected += usize::from(ljung_box(&white(2000, s), 20).rejects);
+        }
+        // 5% nominal; allow sampling error.
+        assert!(rejected <= 12, "white rejected {rejected}/100");
+        let w = white(2000, 1);
+        let ar: Vec<f64> = w
+            .iter()
+            .scan(0.0, |s, x| {
+                *s = 0.5 * *s + x;
+                Some(*s)
+            })
+            .collect();
+        assert!(ljung_box(&ar, 20).rejects);
+    }
+
+    #[test]
+    fn cross_correlation_finds_the_lag() {
+        let u = white(3000, 2);
+        let noise = white(3000, 3);
+        // e(k) = 0.3 u(k-3) + noise: a delay the model missed.
+        let e: Vec<f64> = (0..3000)
+            .map(|k| noise[k] + if k >= 3 { 0.3 * u[k - 3] } else { 0.0 })
+            .collect();
+        let c = cross_correlation(&e, &u, 10);
+        assert!(c.verdict.rejects);
+        assert!(c.outside.contains(&3));
+        assert!(!cross_correlation(&noise, &u, 10).verdict.rejects);
+    }
+
+    #[test]
+    fn billings_sees_a_squared_input_term() {
+        let u = white(4000, 4);
+        let noise = white(4000, 5);
+        let e: Vec<f64> = (0..4000)
+            .map(|k| noise[k] + 0.4 * (u[k] * u[k] - 1.0))
+            .collect();
+        assert!(billings(&e, &u, 10).verdict.rejects);
+        assert!(!billings(&noise, &u, 10).verdict.rejects);
+    }
+
+    #[test]
+    fn spectrum_peak_finds_a_sinusoid() {
+        let noise = white(4000, 6);
+        let w0 = 0.37;
+        let e: Vec<f64> = (0..4000)
+            .map(|k| noise[k] + 0.3 * (w0 * k as f64).sin())
+            .collect();
+        let (w, v) = spectrum_peak(&e);
+        assert!(v.rejects, "{}", v.detail);
+        assert!((w - w0).abs() < 2e-3, "{w}");
+        let mut false_alarms = 0;
+        for s in 0..50 {
+            false_alarms += usize::from(spectrum_peak(&white(4000, 100 + s)).1.rejects);
+        }
+        assert!(
+            false_alarms <= 2,
+            "{false_alarms} of 50 white records flagged"
+        );
+    }
+
+    #[test]
+    fn lattice_finds_the_quantisation_step() {
+        let y: Vec<f64> = white(3000, 7)
+            .iter()
+            .map(|v| (v / 0.05).round() * 0.05)
+            .collect();
+        let (q, v) = lattice(&y);
+        assert!(v.rejects);
+        assert!((q.unwrap() - 0.05).abs() < 1e-9);
+        assert!(!lattice(&white(3000, 8)).1.rejects);
+    }
+
+    #[test]
+    fn clipping_is_seen() {
+        let y: Vec<f64> = white(3000, 9).iter().map(|v| v.clamp(-1.0, 1.0)).collect();
+        assert!(clipping(&y).2.rejects);
+        assert!(!clipping(&white(3000, 10)).2.rejects);
+    }
+
+    #[test]
+    fn drift_sees_a_trend_in_the_up_mode_residual() {
+        let n = 3000;
+        let noise = white(n, 11);
+        let modes: Vec<Mode> = (0..n)
+            .map(|k| if k % 2 == 0 { Mode::Up } else { Mode::Down })
+            .collect();
+        let e: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64 / n as f64;
+                noise[k] * 0.1 + if k % 2 == 0 { 0.1 * t } else { -0.1 * t }
+            })
+            .collect();
+        assert!(drift(&e, &modes).rejects);
+        let e0: Vec<f64> = noise.iter().map(|v| 0.1 * v).collect();
+        assert!(!drift(&e0, &modes).rejects);
+    }
+}

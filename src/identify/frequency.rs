@@ -1,1 +1,0 @@
-//! Frequency identification (paper 003). Work in progress.

@@ -1,0 +1,653 @@
+//! Frequency identification of a Wiener system with a polynomial-border backlash (paper 003: Giri,
+//! Rochdi, Ikhouane, Brouri, Chaoui, "Frequency identification of Wiener systems with backlash operators
+//! using separable least squares estimators").
+//!
+//! One experiment: the system is excited by `u(t) = U cos(omega t)`; from the record of `u` and `y` the
+//! estimator returns the phase lag `phi(omega) = -arg G(j omega)`, the gain `|G(j omega)|` and the
+//! coefficients of the borders `f_a`, `f_d` (eq. (3)), up to the model's scaling and its dual.
+//!
+//! # Steps
+//!
+//! 1. Phase reference: `u` is fitted by `U' cos(omega t - phi_u)`; phases are measured from the input's
+//!    (`rho = omega t - phi_u`), so an input that is a sine or starts at another phase is handled. `U'` must
+//!    agree with the declared amplitude within 5 % (it enters the gain, eq. (35)).
+//! 2. Transient and periodic averaging, eq. (21) (private module `fold`): the transient is detected and
+//!    dropped, the steady full periods are averaged bin by bin (phase bins generalise (21) to sampling
+//!    incommensurate with the period).
+//! 3. Admissibility (Proposition 1.3): an averaged output that does not vary beyond its noise is refused,
+//!    [`FrequencyError::NonAdmissible`], with the advice to raise `U`.
+//! 4. Table 1 and eq. (26): the separable LS (24)-(25) on the whole period is tried first (case 1 of
+//!    Table 1: no constant stages). If its residual is within the noise (chi-square test, 5 standard
+//!    deviations), the output has no constant stages that the data can show, and the SLS estimate is
+//!    returned. Otherwise the averaged output has constant stages (case 2): flat runs of bins are
+//!    detected, each long run alone (Table 1, 2b "otherwise") and each pair of runs half a period apart
+//!    (2b) is a candidate for the stages; the candidate is removed from the optimisation set `I_N` and
+//!    the LS estimator (23) is applied with `psi = omega t_bar` (23a), where `t_bar` is the start of the
+//!    stage. On samples `t_bar` is only known to a bin or two (a stage starts where `x` peaks, and `w`
+//!    meets the stage tangentially), so `psi` is refined by minimising the same cost (22) over a bracket
+//!    around `omega t_bar`: from three bins before the run's start to its end (for a pair, the
+//!    intersection of both brackets modulo `pi`); the stage bins are not in `I_N`, so inside that bracket
+//!    the cost is smooth and its minimum is (23a)'s phase. The candidate with the smallest residual per
+//!    degree of freedom wins; if none beats the SLS, the SLS is kept with a warning.
+//! 5. The SLS phase search, eq. (25a): the cost is `pi`-periodic in `psi`; a grid over `[0, pi)` with a
+//!    spacing of a quarter of a bin (the scale on which the cost's pieces change, so no basin of the cost
+//!    can fall between grid points) and golden-section refinement of the three best local minima.
+//! 6. Recovery, eqs. (28), (35)-(37): `|G| = (sum_i |alpha_i|^(n/i))^(1/n) / U`,
+//!    `a_i = alpha_i / S^(i/n)`, `d_i = delta_i / S^(i/n)` with `S = sum_i |alpha_i|^(n/i)` for **both**
+//!    borders. Eq. (37) of the paper divides the `delta_i` by the sum over the `|delta_i|`; eqs. (33a)-(34a)
+//!    show that the scale is `U |G(j omega)|`, i.e. the same sum over the `alpha_i` (the seeds README records
+//!    this typo), which is what is used.
+//!
+//! # Convention: model or dual, and normalisation
+//!
+//! The data determine the system only up to `(G(s)/K, F[K x])`, `K > 0`, and up to the dual
+//! `(-G(s), F[-x])` (eqs. (6)-(7)). The estimate is normalised as in eqs. (29)-(30a): `K` is such that the
+//! *reported* ascending border satisfies `sum_{i=1..n} |a_i|^(n/i) = 1`, and `gain` is `|G(j omega)| / K`.
+//! Of the model and its dual, the one reported is **the one whose phase lag lies in `[0, pi)`** (the search
+//! domain of eq. (25a)): the true model `(G, F)` when `-arg G(j omega)` modulo `2 pi` is in `[0, pi)` (e.g.
+//! at every frequency for a second-order low-pass with positive static gain), otherwise its dual, itself
+//! re-normalised by (29)-(30a) (the paper's claim (30a) that a model and its dual are normalised together
+//! only holds when `sum |a_i|^(n/i) = sum |d_i|^(n/i)`; in general the dual has its own `K`, so its `gain`
+//! differs from the model's by the factor `(sum |d_i|^(n/i))^(1/n)` of the normalised model).
+//! [`FrequencyEstimate::dual`] converts an estimate to the other member of the pair.
+
+mod fit;
+mod fold;
+
+#[cfg(test)]
+mod tests;
+
+use std::f64::consts::{PI, TAU};
+
+use serde::{Deserialize, Serialize};
+
+use fit::{Problem, Run, flat_runs};
+
+/// Highest border degree the estimator accepts.
+pub const MAX_DEGREE: usize = 6;
+
+/// Tolerance on the agreement between the `u` column's amplitude and the declared `U`.
+pub const AMPLITUDE_TOLERANCE: f64 = 0.05;
+
+/// The experiment's settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrequencyOptions {
+    /// Excitation frequency, rad/s, against the record's time scale.
+    pub omega: f64,
+    /// Excitation amplitude `U`.
+    pub amplitude: f64,
+    /// Border degree `n` (known, paper 003 section 2).
+    pub degree: usize,
+    /// Seconds to discard at the start of the record; `None` detects the transient.
+    pub transient: Option<f64>,
+}
+
+/// A record of one sine experiment: time stamps (s, strictly increasing), optionally the input (used as
+/// the phase reference; without it the input is taken to be `U cos(omega t)`), and the measured output.
+#[derive(Debug, Clone, Copy)]
+pub struct SineRecord<'a> {
+    pub time: &'a [f64],
+    pub u: Option<&'a [f64]>,
+    pub y: &'a [f64],
+}
+
+/// Which estimator of eq. (26) produced the result.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum EstimatorPath {
+    /// Constant stages found: LS estimator (23).
+    Ls,
+    /// No constant stages: separable LS (24)-(25).
+    Sls,
+}
+
+/// The result of one experiment (see the module documentation for the convention).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrequencyEstimate {
+    pub omega: f64,
+    pub amplitude: f64,
+    pub degree: usize,
+    /// Phase lag `phi` in `[0, pi)` (rad): `x = U gain cos(omega t - phi)` relative to the input.
+    pub phase: f64,
+    /// `|G(j omega)| / K`, eq. (35).
+    pub gain: f64,
+    /// Ascending border `a_0..a_n`, eqs. (28), (36); normalised, `sum |a_i|^(n/i) = 1`.
+    pub fa: Vec<f64>,
+    /// Descending border `d_0..d_n`, eqs. (28), (37) corrected.
+    pub fd: Vec<f64>,
+    pub path: EstimatorPath,
+    /// Lumped parameters `alpha_i = a_i (U |G|)^i`, eq. (12c) (ascending branch).
+    pub alpha: Vec<f64>,
+    /// Lumped parameters `delta_i = d_i (U |G|)^i` (descending branch).
+    pub delta: Vec<f64>,
+    /// Length (s) of the constant stage that starts the ascending branch (at the minimum of x); 0 if none.
+    /// Known to a bin.
+    pub tau_a: f64,
+    /// Length (s) of the constant stage that starts the descending branch (at the maximum of x); 0 if none.
+    pub tau_d: f64,
+    /// Steady full periods averaged (`N` of eq. (21)).
+    pub periods_used: usize,
+    /// Full periods dropped as transient.
+    pub transient_periods: usize,
+    /// Phase bins per period.
+    pub samples_per_period: usize,
+    /// RMS of the averaged output minus the model on the optimisation set `I_N` (per sample).
+    pub residual_rms: f64,
+    /// Estimated noise standard deviation of one sample of `y`.
+    pub noise_std: f64,
+    /// Amplitude and phase `U'`, `phi_u` of the input fitted as `U' cos(omega t - phi_u)`, if given.
+    pub input_amplitude: Option<f64>,
+    pub input_phase: Option<f64>,
+    pub warnings: Vec<String>,
+}
+
+/// Why an experiment could not be identified.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FrequencyError {
+    #[error("invalid setting {name} = {value}: {reason}")]
+    InvalidOption {
+        name: &'static str,
+        value: f64,
+        reason: &'static str,
+    },
+    #[error("the record's columns differ in length: {what}")]
+    Lengths { what: String },
+    #[error("sample {index} of {column} is not a finite number ({value})")]
+    NotFinite {
+        column: &'static str,
+        index: usize,
+        value: f64,
+    },
+    #[error("time does not increase at sample {index}")]
+    TimeNotIncreasing { index: usize },
+    #[error(
+        "the record holds {periods:.2} periods of 2 pi/omega and {transient} are dropped as transient: \
+         no full steady period is left; record more periods"
+    )]
+    NoFullPeriod { periods: f64, transient: usize },
+    #[error(
+        "only {per_period} samples per period of 2 pi/omega; at least {needed} are needed for degree \
+         {degree}: sample faster or lower omega"
+    )]
+    TooFewSamples {
+        per_period: usize,
+        needed: usize,
+        degree: usize,
+    },
+    #[error(
+        "the input is not a sine at omega = {omega} rad/s: a fit U cos(omega t - phi) leaves an RMS \
+         residual of {residual:.3e} for an amplitude {fitted:.3e} (check omega and the time column)"
+    )]
+    InputNotSine {
+        omega: f64,
+        fitted: f64,
+        residual: f64,
+    },
+    #[error(
+        "the input's amplitude is {fitted:.6} but the declared amplitude U is {declared}: they must agree \
+         within 5 % (the gain is computed from U)"
+    )]
+    AmplitudeMismatch { fitted: f64, declared: f64 },
+    #[error(
+        "non-admissible experiment (paper 003, Proposition 1.3): the averaged output is constant \
+         (variation {variation:.3e} within the noise, std {noise:.3e} per averaged sample): the sine of \
+         amplitude U = {amplitude} does not move the backlash off a horizontal segment; raise the \
+         amplitude U"
+    )]
+    NonAdmissible {
+        amplitude: f64,
+        variation: f64,
+        noise: f64,
+    },
+    #[error(
+        "the {branch} branch of the cycle has only {found} varying samples per period (at least {needed} \
+         are needed for degree {degree}): raise the amplitude U (or sample faster)"
+    )]
+    TooFewBranchSamples {
+        branch: &'static str,
+        found: usize,
+        needed: usize,
+        degree: usize,
+    },
+    #[error(
+        "the ascending branch shows no variation (alpha_1..alpha_n are all zero), so the scale of \
+         eqs. (35)-(37) is undefined: raise the amplitude U"
+    )]
+    FlatAscending,
+}
+
+/// Normalise a model `(gain, f_a, f_d)` as in eqs. (29)-(30a): the rescaled model `(G/K, F[K x])` with
+/// `K = (sum_{i=1..n} |a_i|^(n/i))^(-1/n)`. Coefficients lowest power first, padded to `degree + 1`.
+/// `None` when `a_1..a_n` are all zero.
+pub fn normalize(
+    gain: f64,
+    fa: &[f64],
+    fd: &[f64],
+    degree: usize,
+) -> Option<(f64, Vec<f64>, Vec<f64>)> {
+    let n = degree;
+    if n == 0 {
+        return None;
+    }
+    let pad =
+        |c: &[f64]| -> Vec<f64> { (0..=n).map(|i| c.get(i).copied().unwrap_or(0.0)).collect() };
+    let (a, d) = (pad(fa), pad(fd));
+    let s: f64 = (1..=n).map(|i| a[i].abs().powf(n as f64 / i as f64)).sum();
+    if !(s.is_finite() && s > 0.0) {
+        return None;
+    }
+    let k = s.powf(-1.0 / n as f64);
+    let scale = |c: Vec<f64>| -> Vec<f64> {
+        c.iter()
+            .enumerate()
+            .map(|(i, v)| v * k.powi(i as i32))
+            .collect()
+    };
+    Some((gain / k, scale(a), scale(d)))
+}
+
+/// The dual model's borders, eqs. (7a)-(7b): `f_a^-(x) = f_d(-x)`, `f_d^-(x) = f_a(-x)`.
+pub fn dual_borders(fa: &[f64], fd: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let flip = |c: &[f64]| -> Vec<f64> {
+        c.iter()
+            .enumerate()
+            .map(|(i, v)| if i % 2 == 1 { -v } else { *v })
+            .collect()
+    };
+    (flip(fd), flip(fa))
+}
+
+/// Recovery of the gain and the normalised borders from the lumped parameters, eqs. (28), (35)-(37)
+/// (with (37)'s normaliser corrected to the sum over the `alpha_i`).
+pub fn recover(
+    alpha: &[f64],
+    delta: &[f64],
+    amplitude: f64,
+) -> Result<(f64, Vec<f64>, Vec<f64>), FrequencyError> {
+    let n = alpha.len() - 1;
+    let s: f64 = (1..=n)
+        .map(|i| alpha[i].abs().powf(n as f64 / i as f64))
+        .sum();
+    let scale = s.powf(1.0 / n as f64);
+    let size = alpha
+        .iter()
+        .chain(delta)
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+        .max(f64::MIN_POSITIVE);
+    if !(scale.is_finite() && scale > 1e-9 * size) {
+        return Err(FrequencyError::FlatAscending);
+    }
+    let gain = scale / amplitude;
+    let norm = |c: &[f64]| -> Vec<f64> {
+        c.iter()
+            .enumerate()
+            .map(|(i, v)| v / scale.powi(i as i32))
+            .collect()
+    };
+    Ok((gain, norm(alpha), norm(delta)))
+}
+
+impl FrequencyEstimate {
+    /// `f_a(x)` of the estimate.
+    pub fn ascending(&self, x: f64) -> f64 {
+        crate::plant::poly::poly_eval(&self.fa, x)
+    }
+
+    /// `f_d(x)` of the estimate.
+    pub fn descending(&self, x: f64) -> f64 {
+        crate::plant::poly::poly_eval(&self.fd, x)
+    }
+
+    /// The other member of the model/dual pair (eqs. (6)-(8), (16)), normalised by (29)-(30a); its phase
+    /// is `phase + pi` modulo `2 pi` (so it lies in `[pi, 2 pi)` for an estimate straight from
+    /// [`estimate`]). Returns a clone if the dual's ascending border is constant (no normalisation).
+    pub fn dual(&self) -> FrequencyEstimate {
+        let (fa, fd) = dual_borders(&self.fa, &self.fd);
+        let Some((gain, fa, fd)) = normalize(self.gain, &fa, &fd, self.degree) else {
+            return self.clone();
+        };
+        let (alpha, delta) = dual_borders(&self.alpha, &self.delta);
+        FrequencyEstimate {
+            phase: (self.phase + PI).rem_euclid(TAU),
+            gain,
+            fa,
+            fd,
+            alpha,
+            delta,
+            tau_a: self.tau_d,
+            tau_d: self.tau_a,
+            ..self.clone()
+        }
+    }
+}
+
+fn check_inputs(rec: &SineRecord, opts: &FrequencyOptions) -> Result<(), FrequencyError> {
+    let bad = |name, value, reason| {
+        Err(FrequencyError::InvalidOption {
+            name,
+            value,
+            reason,
+        })
+    };
+    if !(opts.omega.is_finite() && opts.omega > 0.0) {
+        return bad(
+            "omega",
+            opts.omega,
+            "must be a finite frequency > 0 (rad/s)",
+        );
+    }
+    if !(opts.amplitude.is_finite() && opts.amplitude > 0.0) {
+        return bad(
+            "amplitude",
+            opts.amplitude,
+            "must be a finite amplitude > 0",
+        );
+    }
+    if opts.degree < 1 || opts.degree > MAX_DEGREE {
+        return bad("degree", opts.degree as f64, "must be in 1..=6");
+    }
+    if let Some(t) = opts.transient
+        && !(t.is_finite() && t >= 0.0)
+    {
+        return bad("transient", t, "must be a finite duration >= 0 (s)");
+    }
+    let n = rec.time.len();
+    if rec.y.len() != n || rec.u.is_some_and(|u| u.len() != n) {
+        return Err(FrequencyError::Lengths {
+            what: format!(
+                "time {n}, y {}{}",
+                rec.y.len(),
+                rec.u
+                    .map(|u| format!(", u {}", u.len()))
+                    .unwrap_or_default()
+            ),
+        });
+    }
+    let cols: [(&'static str, Option<&[f64]>); 3] =
+        [("time", Some(rec.time)), ("u", rec.u), ("y", Some(rec.y))];
+    for (name, col) in cols {
+        if let Some(c) = col
+            && let Some(i) = c.iter().position(|v| !v.is_finite())
+        {
+            return Err(FrequencyError::NotFinite {
+                column: name,
+                index: i,
+                value: c[i],
+            });
+        }
+    }
+    if let Some(i) = rec.time.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(FrequencyError::TimeNotIncreasing { index: i + 1 });
+    }
+    Ok(())
+}
+
+/// Fit `u = A cos(omega t) + B sin(omega t)`: amplitude, phase `phi_u` (so `u = U' cos(omega t - phi_u)`)
+/// and RMS residual.
+fn fit_input(t: &[f64], u: &[f64], omega: f64) -> (f64, f64, f64) {
+    let (mut cc, mut cs, mut ss, mut uc, mut us) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for (&ti, &ui) in t.iter().zip(u) {
+        let (s, c) = (omega * ti).sin_cos();
+        cc += c * c;
+        cs += c * s;
+        ss += s * s;
+        uc += ui * c;
+        us += ui * s;
+    }
+    let det = cc * ss - cs * cs;
+    let (a, b) = if det.abs() > 1e-12 * (cc * ss).max(f64::MIN_POSITIVE) {
+        ((uc * ss - us * cs) / det, (us * cc - uc * cs) / det)
+    } else {
+        (0.0, 0.0)
+    };
+    let res = (t
+        .iter()
+        .zip(u)
+        .map(|(&ti, &ui)| {
+            let (s, c) = (omega * ti).sin_cos();
+            (ui - a * c - b * s).powi(2)
+        })
+        .sum::<f64>()
+        / t.len() as f64)
+        .sqrt();
+    (a.hypot(b), b.atan2(a), res)
+}
+
+/// A candidate optimisation set: bins excluded as constant stages, and the phase bracket of (23a).
+struct Candidate {
+    runs: Vec<Run>,
+    lo: f64,
+    hi: f64,
+}
+
+/// Identify one sine experiment (see the module documentation).
+pub fn estimate(
+    rec: &SineRecord,
+    opts: &FrequencyOptions,
+) -> Result<FrequencyEstimate, FrequencyError> {
+    check_inputs(rec, opts)?;
+    let omega = opts.omega;
+    let n = opts.degree;
+    let p = n + 1;
+    let mut warnings = Vec::new();
+
+    // 1. Phase reference.
+    let (input_amplitude, input_phase) = match rec.u {
+        Some(u) => {
+            let (amp, ph, res) = fit_input(rec.time, u, omega);
+            if !(amp.is_finite() && amp > 0.0) || res > 0.1 * amp {
+                return Err(FrequencyError::InputNotSine {
+                    omega,
+                    fitted: amp,
+                    residual: res,
+                });
+            }
+            if (amp - opts.amplitude).abs() > AMPLITUDE_TOLERANCE * opts.amplitude {
+                return Err(FrequencyError::AmplitudeMismatch {
+                    fitted: amp,
+                    declared: opts.amplitude,
+                });
+            }
+            (Some(amp), Some(ph))
+        }
+        None => (None, None),
+    };
+    let phi_u = input_phase.unwrap_or(0.0);
+    let rho: Vec<f64> = rec.time.iter().map(|&t| omega * t - phi_u).collect();
+
+    // 2. Bins, transient, averaging (21).
+    let mut dts: Vec<f64> = rec.time.windows(2).map(|w| w[1] - w[0]).collect();
+    let bins = if dts.is_empty() {
+        0
+    } else {
+        let mid = dts.len() / 2;
+        let (_, dt, _) = dts.select_nth_unstable_by(mid, f64::total_cmp);
+        (TAU / (omega * *dt)).round() as usize
+    };
+    let needed = (4 * p).max(12);
+    if bins < needed {
+        return Err(FrequencyError::TooFewSamples {
+            per_period: bins,
+            needed,
+            degree: n,
+        });
+    }
+    let folded = fold::fold(&rho, rec.y, bins, opts.transient.map(|s| s * omega))?;
+    warnings.extend(folded.warnings.iter().cloned());
+    let nb = folded.w.len();
+    let sig = |j: usize| folded.sigma_bin(j);
+    let sigma_eff = folded.sigma.max(folded.sigma_floor);
+
+    // 3. Admissibility.
+    let total: f64 = folded.count.iter().sum();
+    let mean = folded
+        .w
+        .iter()
+        .zip(&folded.count)
+        .map(|(w, c)| w * c)
+        .sum::<f64>()
+        / total;
+    let chi_const: f64 = (0..nb)
+        .map(|j| ((folded.w[j] - mean) / sig(j)).powi(2))
+        .sum();
+    let dof_const = (nb - 1) as f64;
+    if chi_const <= dof_const + 5.0 * (2.0 * dof_const).sqrt() {
+        let (lo, hi) = folded
+            .w
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+                (l.min(v), h.max(v))
+            });
+        return Err(FrequencyError::NonAdmissible {
+            amplitude: opts.amplitude,
+            variation: hi - lo,
+            noise: sigma_eff / (total / nb as f64).sqrt(),
+        });
+    }
+
+    // 4-5. SLS on the whole period, then constant-stage candidates if it does not fit.
+    let sw: Vec<f64> = folded.count.iter().map(|c| c.sqrt()).collect();
+    let problem = |runs: &[Run]| Problem {
+        phase: &folded.phase,
+        w: &folded.w,
+        sw: sw.clone(),
+        include: (0..nb)
+            .map(|j| !runs.iter().any(|r| r.contains(j, nb)))
+            .collect(),
+        p,
+    };
+    let delta = folded.delta;
+    let score = |cost: f64, included: usize| -> (f64, f64) {
+        let dof = (included as f64 - 2.0 * p as f64 - 1.0).max(1.0);
+        (cost / (sigma_eff * sigma_eff), dof)
+    };
+    let all = problem(&[]);
+    let (psi_sls, j_sls) = all.minimise(0.0, PI, delta / 4.0, true);
+    let (chi_sls, dof_sls) = score(j_sls, nb);
+    let mut chosen: (f64, Vec<Run>, EstimatorPath) = (psi_sls, Vec::new(), EstimatorPath::Sls);
+    if chi_sls > dof_sls + 5.0 * (2.0 * dof_sls).sqrt() {
+        let tol: Vec<f64> = (0..nb).map(|j| 4.0 * sig(j)).collect();
+        let runs = flat_runs(&folded.w, &tol);
+        let top: Vec<Run> = runs.into_iter().take(4).collect();
+        let bracket = |r: &Run| {
+            let (first, last) = r.phases(&folded.phase);
+            (first - 3.0 * delta, last + delta)
+        };
+        let mut cands: Vec<Candidate> = top
+            .iter()
+            .map(|r| {
+                let (lo, hi) = bracket(r);
+                Candidate {
+                    runs: vec![*r],
+                    lo,
+                    hi,
+                }
+            })
+            .collect();
+        for (i, r1) in top.iter().enumerate() {
+            for r2 in &top[i + 1..] {
+                if (0..nb).any(|j| r1.contains(j, nb) && r2.contains(j, nb)) {
+                    continue;
+                }
+                let (lo1, hi1) = bracket(r1);
+                let (lo2, hi2) = bracket(r2);
+                // Align the second bracket, shifted by a multiple of pi, on the first.
+                let shift = (((lo1 + hi1) - (lo2 + hi2)) / 2.0 / PI).round() * PI;
+                let (lo, hi) = (lo1.max(lo2 + shift), hi1.min(hi2 + shift));
+                if lo < hi {
+                    cands.push(Candidate {
+                        runs: vec![*r1, *r2],
+                        lo,
+                        hi,
+                    });
+                }
+            }
+        }
+        let mut best: Option<(f64, f64, Vec<Run>)> = None;
+        for c in cands {
+            let pb = problem(&c.runs);
+            // Inside the bracket the stage bins are out of I_N and the cost is smooth: half-bin grid.
+            let (psi, j) = pb.minimise(c.lo, c.hi, delta / 2.0, false);
+            let (chi, dof) = score(j, pb.included());
+            let per_dof = chi / dof;
+            if best.as_ref().is_none_or(|b| per_dof < b.0) {
+                best = Some((per_dof, psi, c.runs));
+            }
+        }
+        match best {
+            Some((per_dof, psi, runs)) if per_dof < chi_sls / dof_sls => {
+                chosen = (psi, runs, EstimatorPath::Ls);
+            }
+            _ => warnings.push(format!(
+                "the averaged output is not explained by degree-{n} borders within the noise \
+                 (chi-square per degree of freedom {:.3e}) and no constant stage improves the fit: \
+                 check the degree, the steady state and the frequency",
+                chi_sls / dof_sls
+            )),
+        }
+    }
+
+    // 6. Final fit at psi in [0, pi), checks, recovery.
+    let (psi, runs, path) = chosen;
+    let psi = psi.rem_euclid(PI);
+    let pb = problem(&runs);
+    let fit = pb.fit(psi);
+    for (branch, b) in [
+        ("ascending", &fit.ascending),
+        ("descending", &fit.descending),
+    ] {
+        if b.rank < p {
+            return Err(FrequencyError::TooFewBranchSamples {
+                branch,
+                found: b.rows,
+                needed: p,
+                degree: n,
+            });
+        }
+    }
+    let alpha = fit.ascending.theta.clone();
+    let delta_l = fit.descending.theta.clone();
+    let (gain, fa, fd) = recover(&alpha, &delta_l, opts.amplitude)?;
+    let included_samples: f64 = (0..nb)
+        .filter(|&j| pb.include[j])
+        .map(|j| folded.count[j])
+        .sum();
+    let residual_rms = (fit.cost() / included_samples).sqrt();
+
+    // Stage lengths: a run that holds the start of the descending (ascending) half.
+    let mut tau_a = 0.0;
+    let mut tau_d = 0.0;
+    for r in &runs {
+        let (first, last) = r.phases(&folded.phase);
+        for (start, tau) in [(psi, &mut tau_d), (psi + PI, &mut tau_a)] {
+            // Move the branch start next to the run.
+            let s = start + ((first - start) / TAU).round() * TAU;
+            if s >= first - 3.0 * delta && s <= last + delta {
+                *tau = ((last + 0.5 * delta - s) / omega).max(0.0);
+            }
+        }
+    }
+
+    Ok(FrequencyEstimate {
+        omega,
+        amplitude: opts.amplitude,
+        degree: n,
+        phase: psi,
+        gain,
+        fa,
+        fd,
+        path,
+        alpha,
+        delta: delta_l,
+        tau_a,
+        tau_d,
+        periods_used: folded.periods_used,
+        transient_periods: folded.transient_periods,
+        samples_per_period: folded.bins,
+        residual_rms,
+        noise_std: folded.sigma,
+        input_amplitude,
+        input_phase,
+        warnings,
+    })
+}
