@@ -3,7 +3,9 @@
 use super::backlash_plant::{self as md, Var};
 use crate::fmi2::Model;
 use crate::fmi2::vars::{Value, VarInfo};
-use crate::plant::{Plant, PlantOutput, PlantParams};
+use crate::plant::{
+    Plant, PlantExtensions, PlantOutput, PlantParams, PolyBacklashParams, TransferFunction,
+};
 use serde::{Deserialize, Serialize};
 
 /// Parameters as set, the input, and the plant once initialised.
@@ -16,6 +18,14 @@ pub struct PlantFmu {
     delay: i32,
     noise_seed: i32,
     params: PlantParams,
+    /// 0: straight borders; 1: polynomial borders `fa`, `fd` (lowest power first).
+    border: i32,
+    fa: [f64; 4],
+    fd: [f64; 4],
+    /// 0: ARX block; 1: continuous G(s) with `num`, `den` (coefficient of s^i at index i).
+    linear: i32,
+    num: [f64; 4],
+    den: [f64; 5],
     u: f64,
     plant: Option<Plant>,
 }
@@ -36,14 +46,43 @@ impl PlantFmu {
         Ok(p)
     }
 
+    /// Paper 003's polynomial borders and continuous block, as selected by `border` and `linear`.
+    fn extensions(&self) -> Result<PlantExtensions, String> {
+        let borders = match self.border {
+            0 => None,
+            _ => Some(PolyBacklashParams::new(&self.fa, &self.fd).map_err(|e| e.to_string())?),
+        };
+        let continuous = match self.linear {
+            0 => None,
+            _ => {
+                // The parameters list coefficients of s^0, s^1, ...; TransferFunction wants descending powers.
+                let desc = |c: &[f64]| {
+                    let top = c.iter().rposition(|v| *v != 0.0).map_or(0, |i| i + 1);
+                    c[..top].iter().rev().copied().collect::<Vec<f64>>()
+                };
+                let tf = TransferFunction::new(&desc(&self.num), &desc(&self.den))
+                    .map_err(|e| e.to_string())?;
+                Some((tf, self.ts))
+            }
+        };
+        Ok(PlantExtensions {
+            borders,
+            continuous,
+        })
+    }
+
+    /// The plant these parameters describe.
+    fn build(&self) -> Result<Plant, String> {
+        Plant::with_extensions(self.plant_params()?, &self.extensions()?).map_err(|e| e.to_string())
+    }
+
     /// The outputs: those of the running plant, or in initialization mode those it will start with.
     fn output(&self) -> PlantOutput {
         match &self.plant {
             Some(p) => p.output(),
             None => self
-                .plant_params()
+                .build()
                 .ok()
-                .and_then(|p| Plant::new(p).ok())
                 .map(|p| p.output())
                 .unwrap_or(PlantOutput {
                     x: 0.0,
@@ -75,6 +114,12 @@ impl Model for PlantFmu {
             delay: 1,
             noise_seed: 0,
             params: PlantParams::PAPER,
+            border: 0,
+            fa: [0.0; 4],
+            fd: [0.0; 4],
+            linear: 0,
+            num: [0.0; 4],
+            den: [0.0; 5],
             u: 0.0,
             plant: None,
         }
@@ -107,6 +152,25 @@ impl Model for PlantFmu {
             Var::C1 => r(p.backlash.c1),
             Var::C2 => r(p.backlash.c2),
             Var::NoiseStd => r(p.noise_std),
+            Var::Border => Value::Integer(self.border),
+            Var::Fa0 => r(self.fa[0]),
+            Var::Fa1 => r(self.fa[1]),
+            Var::Fa2 => r(self.fa[2]),
+            Var::Fa3 => r(self.fa[3]),
+            Var::Fd0 => r(self.fd[0]),
+            Var::Fd1 => r(self.fd[1]),
+            Var::Fd2 => r(self.fd[2]),
+            Var::Fd3 => r(self.fd[3]),
+            Var::Linear => Value::Integer(self.linear),
+            Var::Num0 => r(self.num[0]),
+            Var::Num1 => r(self.num[1]),
+            Var::Num2 => r(self.num[2]),
+            Var::Num3 => r(self.num[3]),
+            Var::Den0 => r(self.den[0]),
+            Var::Den1 => r(self.den[1]),
+            Var::Den2 => r(self.den[2]),
+            Var::Den3 => r(self.den[3]),
+            Var::Den4 => r(self.den[4]),
         }
     }
 
@@ -145,14 +209,32 @@ impl Model for PlantFmu {
                 }
             }
             Var::NoiseStd => p.noise_std = x,
+            Var::Border => self.border = value.as_integer(),
+            Var::Fa0 => self.fa[0] = x,
+            Var::Fa1 => self.fa[1] = x,
+            Var::Fa2 => self.fa[2] = x,
+            Var::Fa3 => self.fa[3] = x,
+            Var::Fd0 => self.fd[0] = x,
+            Var::Fd1 => self.fd[1] = x,
+            Var::Fd2 => self.fd[2] = x,
+            Var::Fd3 => self.fd[3] = x,
+            Var::Linear => self.linear = value.as_integer(),
+            Var::Num0 => self.num[0] = x,
+            Var::Num1 => self.num[1] = x,
+            Var::Num2 => self.num[2] = x,
+            Var::Num3 => self.num[3] = x,
+            Var::Den0 => self.den[0] = x,
+            Var::Den1 => self.den[1] = x,
+            Var::Den2 => self.den[2] = x,
+            Var::Den3 => self.den[3] = x,
+            Var::Den4 => self.den[4] = x,
             // Outputs: the layer refuses to set them before calling here.
             Var::Y | Var::W | Var::X => {}
         }
     }
 
     fn exit_initialization(&mut self) -> Result<(), String> {
-        let params = self.plant_params()?;
-        self.plant = Some(Plant::new(params).map_err(|e| e.to_string())?);
+        self.plant = Some(self.build()?);
         Ok(())
     }
 

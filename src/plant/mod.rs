@@ -12,7 +12,9 @@ pub mod linear;
 pub mod poly;
 
 pub use backlash::{BacklashParams, Mode};
+pub use continuous::{ContinuousLinear, TransferFunction};
 pub use linear::{Arx, ArxParams, MAX_DELAY, MAX_ORDER};
+pub use poly::{PolyBacklash, PolyBacklashParams};
 
 use rand_chacha::ChaCha8Rng;
 use rand_core::SeedableRng;
@@ -141,11 +143,69 @@ pub struct PlantOutput {
     pub mode: Mode,
 }
 
+/// What paper 003 adds to the plant of paper 000: a continuous-time linear block instead of the ARX block,
+/// and polynomial borders instead of the straight ones. Kept apart from [`PlantParams`] (which stays the
+/// paper 000 parameter set everyone constructs) so that the common case stays a small `Copy` struct.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PlantExtensions {
+    /// Backlash bordered by polynomials f_a, f_d; replaces m1, m2, c1, c2 when set.
+    pub borders: Option<PolyBacklashParams>,
+    /// A strictly proper, stable G(s) sampled with period `ts` (input held between samples); replaces the
+    /// ARX block when set. Strictly proper so that x(k) does not depend on u(k): the plant keeps no direct
+    /// feedthrough, as the FMU's ModelStructure declares.
+    pub continuous: Option<(TransferFunction, f64)>,
+}
+
+impl PlantExtensions {
+    pub fn validate(&self) -> Result<(), ParamError> {
+        if let Some(b) = &self.borders {
+            b.validate()?;
+        }
+        if let Some((tf, ts)) = &self.continuous {
+            tf.validate()?;
+            check_positive("Ts", *ts)?;
+            let deg = |c: &[f64]| c.len() - c.iter().take_while(|v| **v == 0.0).count();
+            if deg(&tf.num) >= deg(&tf.den) {
+                return Err(ParamError::new(
+                    "num",
+                    deg(&tf.num) as f64 - 1.0,
+                    "the transfer function must be strictly proper (numerator degree below the denominator's)",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+enum Linear {
+    Arx(Arx),
+    Continuous(ContinuousLinear),
+}
+
+impl Linear {
+    fn peek(&self) -> f64 {
+        match self {
+            Linear::Arx(a) => a.peek(),
+            // Strictly proper: D = 0, so the input at this instant does not enter.
+            Linear::Continuous(c) => c.output(0.0),
+        }
+    }
+
+    fn push(&mut self, u_k: f64, x_k: f64) {
+        match self {
+            Linear::Arx(a) => a.push(u_k, x_k),
+            Linear::Continuous(c) => c.advance(u_k),
+        }
+    }
+}
+
 /// The plant with its state.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Plant {
     params: PlantParams,
-    arx: Arx,
+    linear: Linear,
+    poly: Option<PolyBacklash>,
     rng: ChaCha8Rng,
     out: PlantOutput,
     k: u64,
@@ -154,10 +214,22 @@ pub struct Plant {
 impl Plant {
     /// A plant at sample 0 with zero history.
     pub fn new(params: PlantParams) -> Result<Self, ParamError> {
+        Self::with_extensions(params, &PlantExtensions::default())
+    }
+
+    /// A plant with paper 003's continuous block and/or polynomial borders.
+    pub fn with_extensions(params: PlantParams, ext: &PlantExtensions) -> Result<Self, ParamError> {
         params.validate()?;
+        ext.validate()?;
+        let linear = match &ext.continuous {
+            Some((tf, ts)) => Linear::Continuous(ContinuousLinear::new(tf.clone(), *ts)?),
+            None => Linear::Arx(Arx::new(params.arx)),
+        };
+        let poly = ext.borders.map(PolyBacklash::new).transpose()?;
         let mut p = Self {
             params,
-            arx: Arx::new(params.arx),
+            linear,
+            poly,
             rng: ChaCha8Rng::seed_from_u64(params.noise_seed),
             out: PlantOutput {
                 x: 0.0,
@@ -175,8 +247,8 @@ impl Plant {
         &self.params
     }
 
-    /// Change the backlash while running (wear: the gaps grow). The new borders act from the next sample on;
-    /// the held output stays where it is.
+    /// Change the straight-border backlash while running (wear: the gaps grow). The new borders act from the
+    /// next sample on; the held output stays where it is. (Polynomial borders, when set, are not affected.)
     pub fn set_backlash(&mut self, backlash: BacklashParams) -> Result<(), ParamError> {
         backlash.validate()?;
         self.params.backlash = backlash;
@@ -194,8 +266,14 @@ impl Plant {
     }
 
     fn compute(&mut self, w_prev: f64) -> PlantOutput {
-        let x = self.arx.peek();
-        let (w, mode) = self.params.backlash.step(x, w_prev);
+        let x = self.linear.peek();
+        let (w, mode) = match &mut self.poly {
+            Some(poly) => {
+                let w = poly.step(x);
+                (w, poly.mode())
+            }
+            None => self.params.backlash.step(x, w_prev),
+        };
         let noise = if self.params.noise_std > 0.0 {
             let z: f64 = StandardNormal.sample(&mut self.rng);
             self.params.noise_std * z
@@ -212,7 +290,7 @@ impl Plant {
 
     /// Take u(k) and move to sample k + 1.
     pub fn advance(&mut self, u_k: f64) {
-        self.arx.push(u_k, self.out.x);
+        self.linear.push(u_k, self.out.x);
         self.k += 1;
         self.out = self.compute(self.out.w);
     }
@@ -267,6 +345,52 @@ mod tests {
             (std - 0.1).abs() < 4.0 * 0.1 / (1000f64).sqrt(),
             "std {std}"
         );
+    }
+
+    #[test]
+    fn straight_polynomial_borders_and_a_first_order_block_reproduce_the_discrete_plant() {
+        // G(s) = b / (s + a) sampled with ZOH at Ts is x(k) = e^{-a Ts} x(k-1) + (b/a)(1 - e^{-a Ts}) u(k-1):
+        // the ARX block with a1 = -e^{-a Ts}, b0 = (b/a)(1 - e^{-a Ts}), delay 1. Straight polynomial borders
+        // equal to m1 (x - c1), m2 (x + c2) must then give the paper-000 plant's output.
+        let (a, b, ts): (f64, f64, f64) = (0.7, 1.3, 0.5);
+        let phi = (-a * ts).exp();
+        let mut p = PlantParams::PAPER;
+        p.arx = ArxParams {
+            na: 1,
+            nb: 0,
+            delay: 1,
+            a: [-phi, 0.0, 0.0, 0.0],
+            b: [b / a * (1.0 - phi), 0.0, 0.0, 0.0, 0.0],
+        };
+        let bl = p.backlash;
+        let ext = PlantExtensions {
+            borders: Some(PolyBacklashParams::from_straight(&bl)),
+            continuous: Some((TransferFunction::new(&[b], &[1.0, a]).unwrap(), ts)),
+        };
+        // |x| stays below 4, the crossing point of the paper's straight borders: beyond it paper 000's rule
+        // and paper 003's differ (plant::poly documents why).
+        let u: Vec<f64> = (0..400).map(|k| 1.8 * (0.05 * k as f64).sin()).collect();
+        let want = Plant::simulate(p, &u).unwrap();
+        let mut plant = Plant::with_extensions(p, &ext).unwrap();
+        for (k, w) in want.iter().enumerate() {
+            let o = plant.output();
+            assert!((o.x - w.x).abs() < 1e-12, "x at {k}: {} vs {}", o.x, w.x);
+            assert!((o.w - w.w).abs() < 1e-12, "w at {k}: {} vs {}", o.w, w.w);
+            plant.advance(u[k]);
+        }
+    }
+
+    #[test]
+    fn a_proper_transfer_function_is_refused() {
+        let ext = PlantExtensions {
+            borders: None,
+            continuous: Some((
+                TransferFunction::new(&[1.0, 0.0], &[1.0, 1.0]).unwrap(),
+                0.1,
+            )),
+        };
+        let e = Plant::with_extensions(PlantParams::PAPER, &ext).unwrap_err();
+        assert!(e.reason.contains("strictly proper"), "{e}");
     }
 
     #[test]

@@ -272,3 +272,46 @@ def test_guid_mismatch_is_refused(plant_fmu, unzipped):
                   modelIdentifier="BacklashPlant", instanceName="wrong")
     with pytest.raises(Exception):
         s.instantiate()
+
+
+def test_paper_003_continuous_block_and_polynomial_borders(plant_fmu):
+    """linear = 1, border = 1: G(s) = 1/(s^2 + 0.6 s + 1) sampled with the input held, and straight borders
+    written as polynomials. The independent check: scipy's ZOH discretisation of G turned into ARX
+    coefficients, run through the NumPy reference plant with the same straight borders."""
+    from scipy.signal import cont2discrete
+
+    ts = 0.1
+    numd, dend, _ = cont2discrete(([1.0], [1.0, 0.6, 1.0]), ts, method="zoh")
+    numd = np.ravel(numd)
+    # x(k) = -a1 x(k-1) - a2 x(k-2) + b0 u(k-1) + b1 u(k-2): numd = [0, b0, b1], dend = [1, a1, a2].
+    assert abs(numd[0]) < 1e-14
+    a, b = list(dend[1:]), list(numd[1:])
+    m1, m2, c1, c2 = 1.2, 0.8, 0.3, 0.2
+    n = 600
+    u = np.random.default_rng(21).uniform(-2, 2, n) * np.repeat([0.3, 1.0, 0.6], n // 3)
+    start = {"Ts": ts, "linear": 1, "num0": 1.0, "den0": 1.0, "den1": 0.6, "den2": 1.0,
+             "border": 1, "fa0": -m1 * c1, "fa1": m1, "fd0": m2 * c2, "fd1": m2}
+    res = simulate_fmu(plant_fmu, stop_time=(n - 1) * ts, output_interval=ts, start_values=start,
+                       input=_input_table(u, ts), output=["x", "w"])
+    x, w = reference.simulate(u, a=a, b=b, delay=1, m1=m1, m2=m2, c1=c1, c2=c2)
+    # The borders cross at x* = (m1 c1 + m2 c2) / (m1 - m2) = 1.3: keep the check to records below it.
+    assert np.max(x) < 1.3
+    np.testing.assert_allclose(res["x"], x, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(res["w"], w, rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize("name,value,reason", [
+    ("den1", -0.6, "stable"),      # unstable G(s)
+    ("num2", 1.0, "strictly proper"),  # numerator degree 2 = denominator degree
+])
+def test_bad_continuous_blocks_are_refused_at_exit_initialization(plant_fmu, unzipped, name, value, reason):
+    vr = _vrs(plant_fmu)
+    s = _slave(plant_fmu, unzipped)
+    s.setupExperiment(startTime=0.0)
+    s.setInteger([vr["linear"]], [1])
+    s.setReal([vr["num0"], vr["den0"], vr["den1"], vr["den2"]], [1.0, 1.0, 0.6, 1.0])
+    s.setReal([vr[name]], [value])
+    s.enterInitializationMode()
+    _expect_error(s.exitInitializationMode)
+    assert reason in LOG.lines[-1][2], LOG.lines[-1]
+    s.freeInstance()
