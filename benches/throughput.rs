@@ -1,0 +1,135 @@
+//! Throughput of the hot paths, as criterion measures them. Ratios, not absolute times, are what the README
+//! quotes: each group has a baseline measured in the same run.
+//!
+//! `cargo bench --bench throughput` (the FMU group needs `cargo build --release` first for target/fmu).
+
+use backlash::identify::frequency::{FrequencyOptions, SineRecord, estimate};
+use backlash::identify::mrgia::{Mrgia, MrgiaConfig, paper_input};
+use backlash::plant::{
+    BacklashParams, ContinuousLinear, Plant, PlantParams, PolyBacklash, PolyBacklashParams,
+    TransferFunction,
+};
+use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use std::hint::black_box;
+
+const N: usize = 10_000;
+
+fn plant_and_backlash(c: &mut Criterion) {
+    let u = paper_input(N, 1);
+    let mut g = c.benchmark_group("plant");
+    g.throughput(Throughput::Elements(N as u64));
+    g.bench_function("backlash step (straight)", |b| {
+        let bl = BacklashParams::PAPER;
+        b.iter(|| {
+            let mut w = 0.0;
+            for &x in &u {
+                w = bl.step(black_box(x), w).0;
+            }
+            w
+        })
+    });
+    g.bench_function("backlash step (polynomial, cubic)", |b| {
+        let p = PolyBacklashParams::new(&[-0.25, 0.9, 0.1, 0.05], &[0.3, 0.85, 0.1, 0.05]).unwrap();
+        b.iter_batched(
+            || PolyBacklash::new(p).unwrap(),
+            |mut bl| {
+                let mut w = 0.0;
+                for &x in &u {
+                    w = bl.step(black_box(x));
+                }
+                w
+            },
+            BatchSize::SmallInput,
+        )
+    });
+    g.bench_function("plant step (paper 000)", |b| {
+        b.iter_batched(
+            || Plant::new(PlantParams::PAPER).unwrap(),
+            |mut p| {
+                for &uk in &u {
+                    p.advance(black_box(uk));
+                }
+                p.output().y
+            },
+            BatchSize::SmallInput,
+        )
+    });
+    g.bench_function("continuous block step (order 2)", |b| {
+        b.iter_batched(
+            || ContinuousLinear::new(TransferFunction::example(), 0.1).unwrap(),
+            |mut l| {
+                let mut x = 0.0;
+                for &uk in &u {
+                    x = l.step(black_box(uk));
+                }
+                x
+            },
+            BatchSize::SmallInput,
+        )
+    });
+    g.finish();
+}
+
+fn mrgia(c: &mut Criterion) {
+    let u = paper_input(N, 2);
+    let y: Vec<f64> = Plant::simulate(PlantParams::PAPER, &u)
+        .unwrap()
+        .iter()
+        .map(|o| o.y)
+        .collect();
+    let mut g = c.benchmark_group("mrgia update");
+    g.throughput(Throughput::Elements(N as u64));
+    for (label, na, nb) in [("na=2 nb=0 (paper)", 2, 0), ("na=4 nb=4", 4, 4)] {
+        g.bench_function(label, |b| {
+            b.iter_batched(
+                || Mrgia::new(MrgiaConfig::paper(na, nb, 1)).unwrap(),
+                |mut m| {
+                    for k in 0..N {
+                        m.update(black_box(u[k]), black_box(y[k]));
+                    }
+                    m.samples()
+                },
+                BatchSize::SmallInput,
+            )
+        });
+    }
+    g.finish();
+}
+
+fn frequency(c: &mut Criterion) {
+    // 40 periods of 200 samples of a sine through G(s) = 1/(s^2 + 0.6 s + 1) and curved borders.
+    let (omega, amp) = (0.5, 3.0);
+    let ts = 2.0 * std::f64::consts::PI / omega / 200.0;
+    let mut lin = ContinuousLinear::new(TransferFunction::example(), ts).unwrap();
+    let mut bl = PolyBacklash::new(
+        PolyBacklashParams::new(&[-0.25, 0.9, 0.1, 0.05], &[0.3, 0.85, 0.1, 0.05]).unwrap(),
+    )
+    .unwrap();
+    let n = 40 * 200;
+    let t: Vec<f64> = (0..n).map(|k| k as f64 * ts).collect();
+    let u: Vec<f64> = t.iter().map(|t| amp * (omega * t).cos()).collect();
+    let y: Vec<f64> = u.iter().map(|&uk| bl.step(lin.step(uk))).collect();
+    let opts = FrequencyOptions {
+        omega,
+        amplitude: amp,
+        degree: 3,
+        transient: None,
+    };
+    c.bench_function("frequency estimator, one record (8000 samples)", |b| {
+        b.iter(|| {
+            estimate(
+                &SineRecord {
+                    time: &t,
+                    u: Some(&u),
+                    y: &y,
+                },
+                black_box(&opts),
+            )
+            .unwrap()
+            .gain
+        })
+    });
+}
+
+criterion_group!(benches, plant_and_backlash, mrgia, frequency);
+criterion_main!(benches);
