@@ -14,3 +14,5 @@ echo "== cargo test --release"
 cargo test --release
 echo "== pytest"
 .venv/bin/python -m pytest -q tests/python
+echo "== compliance: valgrind, fmutool, long fuzz, 1e7-row RSS"
+bash scripts/compliance.sh

@@ -84,6 +84,30 @@ struct Header {
     guid: String,
 }
 
+/// The layer states an FMU state may carry: those a sequence of legal calls can leave an instance in.
+fn check_layer(l: &LayerState) -> Result<(), String> {
+    if !matches!(
+        l.state,
+        State::Instantiated
+            | State::InitializationMode
+            | State::StepComplete
+            | State::Terminated
+            | State::Error
+    ) {
+        return Err(format!(
+            "the FMU state claims the instance state '{}', which no sequence of calls produces",
+            l.state.name()
+        ));
+    }
+    if !l.start_time.is_finite()
+        || l.stop_time
+            .is_some_and(|s| !(s.is_finite() && s >= l.start_time))
+    {
+        return Err("the FMU state's start or stop time is invalid".into());
+    }
+    Ok(())
+}
+
 fn check_header(bytes: &[u8], guid: &str, model: &str) -> Result<(), String> {
     let h: Header = serde_json::from_slice(bytes)
         .map_err(|e| format!("the FMU state is truncated or corrupted ({e})"))?;
@@ -100,6 +124,19 @@ fn check_header(bytes: &[u8], guid: &str, model: &str) -> Result<(), String> {
         ));
     }
     Ok(())
+}
+
+/// Parse and check an FMU state: header, JSON, layer state, and the model's own consistency.
+fn parse_state<M: Model>(bytes: &[u8]) -> Result<Envelope<M>, String> {
+    check_header(bytes, M::GUID, M::MODEL_IDENTIFIER)?;
+    let env: Envelope<M> = serde_json::from_slice(bytes)
+        .map_err(|e| format!("the FMU state is truncated or corrupted ({e})"))?;
+    debug_assert!(env.format == STATE_FORMAT && env.guid == M::GUID);
+    check_layer(&env.layer)?;
+    env.model
+        .check_restored()
+        .map_err(|e| format!("the FMU state is inconsistent: {e}"))?;
+    Ok(env)
 }
 
 /// A model at its XML start values.
@@ -165,27 +202,25 @@ impl<M: Model> Slave for Adapter<M> {
         self.0 = fresh::<M>();
     }
     fn save(&self, layer: &LayerState) -> Result<Vec<u8>, String> {
-        serde_json::to_vec(&EnvelopeRef {
+        let bytes = serde_json::to_vec(&EnvelopeRef {
             format: STATE_FORMAT,
             guid: M::GUID,
             layer,
             model: &self.0,
         })
-        .map_err(|e| format!("cannot save the FMU state: {e}"))
+        .map_err(|e| format!("cannot save the FMU state: {e}"))?;
+        // Hand out only states that can be restored (JSON has no NaN or infinity, for one).
+        self.check_state(&bytes)
+            .map_err(|e| format!("cannot save the FMU state: it would not restore: {e}"))?;
+        Ok(bytes)
     }
     fn restore(&mut self, bytes: &[u8]) -> Result<LayerState, String> {
-        check_header(bytes, M::GUID, M::MODEL_IDENTIFIER)?;
-        let env: Envelope<M> = serde_json::from_slice(bytes)
-            .map_err(|e| format!("the FMU state is truncated or corrupted ({e})"))?;
-        debug_assert!(env.format == STATE_FORMAT && env.guid == M::GUID);
+        let env = parse_state::<M>(bytes)?;
         self.0 = env.model;
         Ok(env.layer)
     }
     fn check_state(&self, bytes: &[u8]) -> Result<(), String> {
-        check_header(bytes, M::GUID, M::MODEL_IDENTIFIER)?;
-        serde_json::from_slice::<Envelope<M>>(bytes)
-            .map(|_| ())
-            .map_err(|e| format!("the FMU state is truncated or corrupted ({e})"))
+        parse_state::<M>(bytes).map(|_| ())
     }
 }
 
@@ -344,6 +379,7 @@ impl Instance {
             return Err(format!("parameter Ts = {ts} must be finite and > 0"));
         }
         self.slave.exit_initialization()?;
+        self.check_outputs("at the start")?;
         self.layer.samples = 0;
         self.layer.state = State::StepComplete;
         Ok(())
@@ -383,7 +419,19 @@ impl Instance {
     /// Values of the variables `vrs` of type `ty`, all or nothing.
     pub fn get(&mut self, ty: VarType, vrs: &[u32]) -> Result<Vec<Value>, String> {
         let idx = self.lookup_all(ty, vrs)?;
-        Ok(idx.into_iter().map(|i| self.slave.get(i)).collect())
+        let values: Vec<Value> = idx.iter().map(|&i| self.slave.get(i)).collect();
+        // A diverged model (refused at its step, see check_outputs) must not hand out NaN or infinity as fmi2OK.
+        for (&i, v) in idx.iter().zip(&values) {
+            if let Value::Real(x) = v
+                && !x.is_finite()
+            {
+                return Err(format!(
+                    "'{}' is not finite ({x}): the model diverged",
+                    self.slave.variables()[i].name
+                ));
+            }
+        }
+        Ok(values)
     }
 
     /// Hand out C strings that live until the next fmi2GetString.
@@ -484,6 +532,11 @@ impl Instance {
                 self.slave.identifier()
             ));
         }
+        if !(now + n as f64 * ts).is_finite() {
+            return Err(format!(
+                "the step would end at a time that is not finite (Ts = {ts}, {n} samples)"
+            ));
+        }
         if let Some(stop) = self.layer.stop_time {
             let end = now + n as f64 * ts;
             if end > stop + STEP_TOLERANCE * ts {
@@ -494,6 +547,25 @@ impl Instance {
         }
         self.slave.step(n)?;
         self.layer.samples += n;
+        self.check_outputs("after the step")?;
+        Ok(())
+    }
+
+    /// A model that diverged (an unstable linear block, absurd inputs or parameters) must not be reported as
+    /// fine: every Real output must be finite.
+    fn check_outputs(&self, when: &str) -> Result<(), String> {
+        for (i, v) in self.slave.variables().iter().enumerate() {
+            if v.causality == Causality::Output
+                && v.ty == VarType::Real
+                && !self.slave.get(i).as_real().is_finite()
+            {
+                return Err(format!(
+                    "the model diverged: output '{}' is not finite {when} (is the linear block stable, \
+                     are the input and the parameters of a sensible size?)",
+                    v.name
+                ));
+            }
+        }
         Ok(())
     }
 

@@ -46,4 +46,7 @@ pub trait Model: Serialize + DeserializeOwned + Send + 'static {
     fn sample_period(&self) -> f64;
     /// Advance `n` samples with the inputs held.
     fn step(&mut self, n: u64) -> Result<(), String>;
+    /// Consistency of a model restored from an FMU state (which may come from outside: a file, another
+    /// process). `Err` names what is wrong; the state is then refused.
+    fn check_restored(&self) -> Result<(), String>;
 }

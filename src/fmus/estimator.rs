@@ -96,9 +96,19 @@ impl Model for EstimatorFmu {
     fn get(&self, var: Var) -> Value {
         let s = &self.settings;
         let r = Value::Real;
-        let estimate = || self.estimator().map(|e| e.estimate());
-        let a = |i: usize| r(estimate().and_then(|e| e.a.get(i).copied()).unwrap_or(0.0));
-        let b = |j: usize| r(estimate().and_then(|e| e.b.get(j).copied()).unwrap_or(0.0));
+        // Estimates straight from theta = [a1..a_na, b0..b_nb, m2 - 1, c1, c2] (no allocation per get: the
+        // layer reads every output after each step).
+        let est = self.estimator();
+        let theta = |i: Option<usize>| -> f64 {
+            match (&est, i) {
+                (Some(e), Some(i)) => e.theta()[i],
+                _ => 0.0,
+            }
+        };
+        let (na, nb) = (self.na.max(0) as usize, self.nb.max(0) as usize);
+        let a = |i: usize| r(theta((i < na).then_some(i)));
+        let b = |j: usize| r(theta((j <= nb).then_some(na + j)));
+        let tail = |off: usize| theta(Some(na + nb + 1 + off));
         let last = || {
             self.est.as_ref().map(Mrgia::last).unwrap_or(StepResult {
                 y_hat: 0.0,
@@ -129,9 +139,9 @@ impl Model for EstimatorFmu {
             Var::B2 => b(2),
             Var::B3 => b(3),
             Var::B4 => b(4),
-            Var::M2 => r(estimate().map_or(0.0, |e| e.m2)),
-            Var::C1 => r(estimate().map_or(0.0, |e| e.c1)),
-            Var::C2 => r(estimate().map_or(0.0, |e| e.c2)),
+            Var::M2 => r(if est.is_some() { 1.0 + tail(0) } else { 0.0 }),
+            Var::C1 => r(tail(1)),
+            Var::C2 => r(tail(2)),
             Var::YHat => r(last().y_hat),
             Var::E => r(last().e),
             Var::Updating => Value::Boolean(last().updating),
@@ -182,6 +192,31 @@ impl Model for EstimatorFmu {
 
     fn sample_period(&self) -> f64 {
         self.ts
+    }
+
+    fn check_restored(&self) -> Result<(), String> {
+        let ts_ok = self.ts.is_finite() && self.ts > 0.0;
+        if !ts_ok || !self.u.is_finite() || !self.y.is_finite() {
+            return Err("Ts, u or y is not valid".into());
+        }
+        // Mrgia checks its own consistency when deserialised; its settings must also be valid.
+        match &self.est {
+            None => Ok(()),
+            Some(e) => {
+                let c = e.config();
+                c.validate().map_err(|e| e.to_string())?;
+                if (c.na, c.nb, c.delay)
+                    != (self.na as usize, self.nb as usize, self.delay as usize)
+                    || self.na < 0
+                    || self.nb < 0
+                {
+                    return Err(
+                        "the estimator's orders differ from the parameters na, nb, delay".into(),
+                    );
+                }
+                Ok(())
+            }
+        }
     }
 
     fn step(&mut self, n: u64) -> Result<(), String> {

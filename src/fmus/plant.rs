@@ -100,7 +100,9 @@ impl Model for PlantFmu {
     const GUID: &'static str = md::GUID;
     const LOG_CATEGORIES: &'static [&'static str] = md::LOG_CATEGORIES;
     const VARIABLES: &'static [VarInfo] = &md::VARIABLES;
-    const MAX_SAMPLES_PER_STEP: Option<u64> = None;
+    /// 1e8 samples (seconds of work at the plant's rate): a longer step, e.g. Ts = 1e-9 s with a step of
+    /// 1000 s, would hold the importer's thread for hours inside one fmi2DoStep.
+    const MAX_SAMPLES_PER_STEP: Option<u64> = Some(100_000_000);
 
     fn var(index: usize) -> Var {
         Var::ALL[index]
@@ -240,6 +242,18 @@ impl Model for PlantFmu {
 
     fn sample_period(&self) -> f64 {
         self.ts
+    }
+
+    fn check_restored(&self) -> Result<(), String> {
+        let ts_ok = self.ts.is_finite() && self.ts > 0.0;
+        if !ts_ok || !self.u.is_finite() {
+            return Err("Ts or u is not valid".into());
+        }
+        match &self.plant {
+            // Not initialised yet: parameters are checked at fmi2ExitInitializationMode.
+            None => Ok(()),
+            Some(p) => p.check(),
+        }
     }
 
     fn step(&mut self, n: u64) -> Result<(), String> {

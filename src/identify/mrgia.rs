@@ -452,7 +452,9 @@ impl Mrgia {
         for j in 0..=nb {
             x += theta[na + j] * self.u_hist.get(d + j - 1);
         }
-        let xb = X_CLAMP * (1.0 + self.u_max + self.y_max);
+        // Capped so that the bound itself stays finite after extreme (but finite) inputs: an infinite x^ would
+        // make the saved state unrestorable (JSON has no infinity).
+        let xb = (X_CLAMP * (1.0 + self.u_max + self.y_max)).min(1e300);
         // NaN only if theta * x^ overflowed (absurd data); restart the auxiliary model from 0 then.
         let x = if x.is_nan() { 0.0 } else { x.clamp(-xb, xb) };
         let dx = x - self.x_hist[0];

@@ -79,6 +79,22 @@ impl History {
         self.buf[(self.head + age) % n]
     }
 
+    /// Length and position consistent, values finite (for states restored from outside).
+    pub fn check(&self, len: usize, what: &str) -> Result<(), String> {
+        if self.buf.len() != len.max(1) || self.head >= self.buf.len() {
+            return Err(format!(
+                "{what}: history of length {} with head {} (expected length {})",
+                self.buf.len(),
+                self.head,
+                len.max(1)
+            ));
+        }
+        if self.buf.iter().any(|v| !v.is_finite()) {
+            return Err(format!("{what}: history holds a non-finite value"));
+        }
+        Ok(())
+    }
+
     pub fn clear(&mut self) {
         self.buf.iter_mut().for_each(|v| *v = 0.0);
         self.head = 0;
@@ -130,6 +146,14 @@ impl Arx {
         let x = self.peek();
         self.push(u_k, x);
         x
+    }
+
+    /// Internal consistency of a restored block.
+    pub fn check(&self) -> Result<(), String> {
+        self.params.validate().map_err(|e| e.to_string())?;
+        self.u_hist
+            .check(self.params.input_memory(), "input history")?;
+        self.x_hist.check(MAX_ORDER, "output history")
     }
 
     pub fn reset(&mut self) {

@@ -255,6 +255,35 @@ impl Plant {
         Ok(())
     }
 
+    /// Internal consistency of a plant restored from outside (an FMU state): valid parameters, histories of
+    /// the right length, finite signals. A forged or corrupted state is refused here rather than failing on
+    /// the next step.
+    pub fn check(&self) -> Result<(), String> {
+        self.params.validate().map_err(|e| e.to_string())?;
+        match &self.linear {
+            Linear::Arx(a) => {
+                a.check()?;
+                if a.params != self.params.arx {
+                    return Err("the ARX block's parameters differ from the plant's".into());
+                }
+            }
+            Linear::Continuous(c) => {
+                c.validate().map_err(|e| e.to_string())?;
+                if c.state().iter().any(|v| !v.is_finite()) {
+                    return Err("the continuous block's state is not finite".into());
+                }
+            }
+        }
+        if let Some(p) = &self.poly {
+            p.validate().map_err(|e| e.to_string())?;
+        }
+        let o = &self.out;
+        if ![o.x, o.w, o.y].iter().all(|v| v.is_finite()) {
+            return Err("the plant's outputs are not finite".into());
+        }
+        Ok(())
+    }
+
     /// The outputs at the current sample.
     pub fn output(&self) -> PlantOutput {
         self.out

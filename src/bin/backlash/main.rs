@@ -4,6 +4,7 @@
 
 mod frequency;
 mod identify;
+mod oe;
 mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -29,6 +30,10 @@ enum Command {
     /// Run sine experiments on a simulated plant (continuous block + polynomial-border backlash) at several
     /// frequencies, identify each with paper 003's estimators, and plot |G(jw)| and the borders.
     Experiment(frequency::ExperimentArgs),
+    /// Cramer-Rao bound of the output-error model on an input record: plan an experiment.
+    Crb(oe::CrbArgs),
+    /// Monte Carlo study of the paper's example: MRGIA, output error and the Cramer-Rao bound against N.
+    Study(oe::StudyArgs),
 }
 
 #[derive(Subcommand)]
@@ -37,6 +42,8 @@ enum IdentifyCommand {
     Mrgia(identify::MrgiaArgs),
     /// Frequency identification of paper 003 from one sine experiment (u = U cos(w t)).
     Frequency(frequency::IdentifyFrequencyArgs),
+    /// Output-error (prediction-error) refinement from MRGIA's estimate, with standard errors.
+    Oe(oe::OeArgs),
 }
 
 fn main() {
@@ -46,6 +53,9 @@ fn main() {
         Command::Identify(IdentifyCommand::Mrgia(a)) => identify::run_mrgia(a),
         Command::Identify(IdentifyCommand::Frequency(a)) => frequency::run_identify(a),
         Command::Experiment(a) => frequency::run_experiment(a),
+        Command::Identify(IdentifyCommand::Oe(a)) => oe::run_oe(a),
+        Command::Crb(a) => oe::run_crb(a),
+        Command::Study(a) => oe::run_study(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

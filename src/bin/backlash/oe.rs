@@ -1,0 +1,511 @@
+//! `backlash identify oe` (output-error refinement from MRGIA, with standard errors), `backlash crb`
+//! (Cramer-Rao bound of an input record: plan an experiment) and `backlash study` (Monte Carlo study of the
+//! paper's example).
+
+use anyhow::{Context, Result, bail};
+use backlash::identify::mrgia::{Estimate, paper_input};
+use backlash::identify::oe::{
+    self, OeConfig, OeFit, StudyConfig, Uncertainty, crb, estimate_of, fit, param_names, plant_of,
+    simulate, theta_of,
+};
+use backlash::io::{Table, write_atomic};
+use backlash::plant::{ArxParams, BacklashParams, PlantParams};
+use backlash::report::plot::{Series, line_plot};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::{Value, json};
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(clap::Args)]
+pub struct OeArgs {
+    /// Data file: CSV with columns time,u,y (any order; other columns ignored).
+    pub file: PathBuf,
+    /// Number of a coefficients (0..4).
+    #[arg(long)]
+    pub na: usize,
+    /// Highest b index (0..4): b0..b_nb are estimated.
+    #[arg(long)]
+    pub nb: usize,
+    /// Input delay in samples (>= 1).
+    #[arg(long)]
+    pub delay: usize,
+    /// Start only from MRGIA's recommended estimate (default: also from the paper setting's estimate and
+    /// from the recommended one with halved gaps, keeping the lowest cost).
+    #[arg(long)]
+    pub single_start: bool,
+    /// Levenberg-Marquardt iterations per start (default 200).
+    #[arg(long)]
+    pub max_iter: Option<usize>,
+    /// Cramer-Rao bound at the fitted model and this input for a noise std S (default: none; with the
+    /// estimated noise std the bound equals the reported standard errors).
+    #[arg(long, allow_negative_numbers = true)]
+    pub crb_noise_std: Option<f64>,
+    /// Plan: samples needed so that every parameter's relative standard deviation is at most R (from the
+    /// standard errors, or from the CRB with --crb-noise-std, scaled as 1/sqrt(N)).
+    #[arg(long, allow_negative_numbers = true)]
+    pub target_rel: Option<f64>,
+    /// Print one JSON object on stdout and nothing else there.
+    #[arg(long)]
+    pub json: bool,
+    /// Write time,u,y,y_oe,e_oe,y_start as CSV (model outputs of the fit and of its start).
+    #[arg(long)]
+    pub residuals: Option<PathBuf>,
+    /// Write a PNG of the measured output, the fitted model's output and its start's (first 150 samples).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+fn estimate_json(e: &Estimate) -> Value {
+    json!({"a": e.a, "b": e.b, "m1": e.m1, "m2": e.m2, "c1": e.c1, "c2": e.c2})
+}
+
+/// `{"a1": v, ...}` for per-parameter values in theta order.
+fn named<T: serde::Serialize>(names: &[String], v: &[T]) -> Value {
+    Value::Object(
+        names
+            .iter()
+            .zip(v)
+            .map(|(n, x)| (n.clone(), json!(x)))
+            .collect(),
+    )
+}
+
+fn plan_json(unc: &Uncertainty, target: f64) -> Result<Value> {
+    let (per, all) = unc.samples_for(target)?;
+    Ok(json!({
+        "target_rel": target,
+        "basis_samples": unc.samples,
+        "basis_noise_std": unc.noise_std,
+        "samples": named(&unc.names, &per),
+        "samples_all": all,
+    }))
+}
+
+fn print_plan(unc: &Uncertainty, target: f64) -> Result<()> {
+    let (per, all) = unc.samples_for(target)?;
+    println!(
+        "  samples for a relative std <= {target:e} (1/sqrt(N) scaling of N = {}):",
+        unc.samples
+    );
+    for (n, s) in unc.names.iter().zip(&per) {
+        match s {
+            Some(s) => println!("    {n:>3}: {s}"),
+            None => println!("    {n:>3}: - (value 0)"),
+        }
+    }
+    println!("    all: {all}");
+    Ok(())
+}
+
+pub fn run_oe(args: &OeArgs) -> Result<()> {
+    let mut cfg = OeConfig::new(args.na, args.nb, args.delay);
+    cfg.extra_starts = !args.single_start;
+    if let Some(m) = args.max_iter {
+        cfg.max_iter = m;
+    }
+    cfg.validate().context("invalid setting")?;
+    let table = Table::read(&args.file, &["time", "u", "y"])?;
+    let (t, u, y) = (
+        table.column("time").unwrap(),
+        table.column("u").unwrap(),
+        table.column("y").unwrap(),
+    );
+    let started = Instant::now();
+    let f: OeFit = fit(&cfg, u, y).with_context(|| format!("{}", args.file.display()))?;
+    let seconds = started.elapsed().as_secs_f64();
+    let names = param_names(cfg.na, cfg.nb);
+    let bound = match args.crb_noise_std {
+        Some(s) => Some(crb(&plant_of(&f.estimate, cfg.delay)?, u, s)?),
+        None => None,
+    };
+    let plan_basis = bound.as_ref().unwrap_or(&f.uncertainty);
+
+    if args.residuals.is_some() || args.plot.is_some() {
+        let w = simulate(&f.estimate, cfg.delay, u)?;
+        let w0 = simulate(&f.start, cfg.delay, u)?;
+        if let Some(path) = &args.residuals {
+            write_atomic(path, |out: &mut dyn Write| {
+                writeln!(out, "time,u,y,y_oe,e_oe,y_start")?;
+                for k in 0..u.len() {
+                    writeln!(
+                        out,
+                        "{:?},{:?},{:?},{:?},{:?},{:?}",
+                        t[k],
+                        u[k],
+                        y[k],
+                        w[k],
+                        y[k] - w[k],
+                        w0[k]
+                    )?;
+                }
+                Ok(())
+            })
+            .with_context(|| format!("{}: cannot write the residuals", path.display()))?;
+        }
+        if let Some(path) = &args.plot {
+            let n = u.len().min(150);
+            let pts = |v: &[f64]| -> Vec<(f64, f64)> { (0..n).map(|k| (t[k], v[k])).collect() };
+            line_plot(
+                path,
+                &format!("Output-error fit, {}", args.file.display()),
+                "time",
+                "output",
+                &[
+                    Series::points("measured y", pts(y)).color(7),
+                    Series::line("OE model", pts(&w)).color(0),
+                    Series::dashed(&format!("start ({})", f.start_method), pts(&w0)).color(1),
+                ],
+                false,
+                false,
+            )?;
+        }
+    }
+
+    if args.json {
+        let e = &f.estimate;
+        let mut out = json!({
+            "method": "oe",
+            "a": e.a,
+            "b": e.b,
+            "m1": e.m1,
+            "m2": e.m2,
+            "c1": e.c1,
+            "c2": e.c2,
+            "samples": f.samples,
+            "std_err": f.std_err,
+            "sigma": f.sigma,
+            "rmse": f.rmse,
+            "cost": f.cost,
+            "iterations": f.iterations,
+            "converged": f.converged,
+            "modes": {"up": f.modes[0], "down": f.modes[1], "held": f.modes[2]},
+            "start": {
+                "method": f.start_method,
+                "rmse": f.start_rmse,
+                "estimate": estimate_json(&f.start),
+            },
+            "covariance": f.uncertainty.covariance,
+            "names": names,
+            "seconds": seconds,
+            "config": cfg,
+            "file": args.file.display().to_string(),
+        });
+        if let Some(c) = &bound {
+            out["crb"] = json!({"noise_std": c.noise_std, "std": c.std_err()});
+        }
+        if let Some(r) = args.target_rel {
+            out["plan"] = plan_json(plan_basis, r)?;
+        }
+        println!("{out}");
+    } else {
+        println!(
+            "Output-error fit on {}: {} samples, {} iterations from {} ({}), {:.1} ms",
+            args.file.display(),
+            f.samples,
+            f.iterations,
+            f.start_method,
+            if f.converged {
+                "converged"
+            } else {
+                "iteration limit reached"
+            },
+            seconds * 1e3
+        );
+        let est = theta_of(&f.estimate);
+        for (i, n) in names.iter().enumerate() {
+            print!("  {n:>3} = {:.6} +/- {:.6}", est[i], f.uncertainty.std[i]);
+            if let Some(c) = &bound {
+                print!("   (CRB std at noise {:e}: {:.6})", c.noise_std, c.std[i]);
+            }
+            println!();
+        }
+        println!(
+            "  residual std {:.6e} (N - p = {} degrees of freedom); start rmse {:.6e}",
+            f.sigma,
+            f.samples - names.len(),
+            f.start_rmse
+        );
+        println!(
+            "  (m1 = 1 is the normalisation; +/- is one standard error from the Fisher information)"
+        );
+        if let Some(r) = args.target_rel {
+            print_plan(plan_basis, r)?;
+        }
+    }
+    Ok(())
+}
+
+#[derive(clap::Args)]
+pub struct CrbArgs {
+    /// Input record: CSV with columns time,u (y and other columns ignored). Omit it with --paper-input.
+    pub file: Option<PathBuf>,
+    /// Use N samples of the paper's input (uniform white noise of variance 1.93) instead of a file.
+    #[arg(long, conflicts_with = "file")]
+    pub paper_input: Option<usize>,
+    /// Seed of --paper-input.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// True a1..a_na, comma-separated (default: the paper's 0.45,0.55).
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    pub a: Option<Vec<f64>>,
+    /// True b0..b_nb, comma-separated (default: the paper's 0.8).
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    pub b: Option<Vec<f64>>,
+    /// Delay in samples (default 1).
+    #[arg(long)]
+    pub delay: Option<usize>,
+    /// True m1 (default 1; the bound is for the m1 = 1 normalisation: b, c scaled by m1, m2 divided).
+    #[arg(long, allow_negative_numbers = true)]
+    pub m1: Option<f64>,
+    /// True m2 (default 1.5).
+    #[arg(long, allow_negative_numbers = true)]
+    pub m2: Option<f64>,
+    /// True c1 (default 0.5).
+    #[arg(long, allow_negative_numbers = true)]
+    pub c1: Option<f64>,
+    /// True c2 (default 1).
+    #[arg(long, allow_negative_numbers = true)]
+    pub c2: Option<f64>,
+    /// Measurement noise standard deviation.
+    #[arg(long, allow_negative_numbers = true, required_unless_present = "snr")]
+    pub noise_std: Option<f64>,
+    /// Instead of --noise-std: noise std = std(w) / SNR, w the noise-free output on this input.
+    #[arg(long, allow_negative_numbers = true, conflicts_with = "noise_std")]
+    pub snr: Option<f64>,
+    /// Plan: samples needed so that every parameter's relative CRB std is at most R.
+    #[arg(long, allow_negative_numbers = true)]
+    pub target_rel: Option<f64>,
+    /// Print one JSON object on stdout and nothing else there.
+    #[arg(long)]
+    pub json: bool,
+}
+
+impl CrbArgs {
+    fn truth(&self) -> Result<PlantParams> {
+        let mut arx = ArxParams::PAPER;
+        if let Some(a) = &self.a {
+            if a.len() > 4 {
+                bail!("--a has {} coefficients; at most 4 are supported", a.len());
+            }
+            arx.na = a.len();
+            arx.a = [0.0; 4];
+            arx.a[..a.len()].copy_from_slice(a);
+        }
+        if let Some(b) = &self.b {
+            if b.is_empty() || b.len() > 5 {
+                bail!("--b has {} coefficients; 1 to 5 are supported", b.len());
+            }
+            arx.nb = b.len() - 1;
+            arx.b = [0.0; 5];
+            arx.b[..b.len()].copy_from_slice(b);
+        }
+        arx.delay = self.delay.unwrap_or(arx.delay);
+        let d = BacklashParams::PAPER;
+        let p = PlantParams {
+            arx,
+            backlash: BacklashParams {
+                m1: self.m1.unwrap_or(d.m1),
+                m2: self.m2.unwrap_or(d.m2),
+                c1: self.c1.unwrap_or(d.c1),
+                c2: self.c2.unwrap_or(d.c2),
+            },
+            noise_std: 0.0,
+            noise_seed: 0,
+        };
+        p.validate()?;
+        Ok(p)
+    }
+}
+
+pub fn run_crb(args: &CrbArgs) -> Result<()> {
+    let truth = args.truth()?;
+    let (u, source): (Vec<f64>, String) = match (&args.file, args.paper_input) {
+        (Some(path), _) => {
+            let table = Table::read(path, &["time", "u"])?;
+            (
+                table.column("u").unwrap().to_vec(),
+                path.display().to_string(),
+            )
+        }
+        (None, Some(n)) => (
+            paper_input(n, args.seed),
+            format!("paper input, seed {}", args.seed),
+        ),
+        (None, None) => bail!("give an input file or --paper-input N"),
+    };
+    let noise_std = match (args.noise_std, args.snr) {
+        (Some(s), _) => s,
+        (None, Some(r)) => {
+            if !(r.is_finite() && r > 0.0) {
+                bail!("--snr {r} must be a finite number > 0");
+            }
+            let w = simulate(&estimate_of(&truth), truth.arx.delay, &u)?;
+            let n = w.len().max(1) as f64;
+            let mean = w.iter().sum::<f64>() / n;
+            (w.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt() / r
+        }
+        (None, None) => bail!("give --noise-std or --snr"),
+    };
+    let c = crb(&truth, &u, noise_std)?;
+    let rel: Vec<Option<f64>> = c
+        .std
+        .iter()
+        .zip(&c.theta)
+        .map(|(s, t)| (*t != 0.0).then(|| s / t.abs()))
+        .collect();
+    if args.json {
+        let mut out = json!({
+            "method": "crb",
+            "input": source,
+            "samples": c.samples,
+            "noise_std": c.noise_std,
+            "truth": estimate_json(&estimate_of(&truth)),
+            "std": c.std_err(),
+            "rel_std": named(&c.names, &rel),
+            "covariance": c.covariance,
+            "names": c.names,
+        });
+        if let Some(r) = args.target_rel {
+            out["plan"] = plan_json(&c, r)?;
+        }
+        println!("{out}");
+    } else {
+        println!(
+            "Cramer-Rao bound of the output-error model on {source}: {} samples, noise std {:e}",
+            c.samples, c.noise_std
+        );
+        for (i, n) in c.names.iter().enumerate() {
+            print!("  {n:>3} = {:<10} std >= {:.3e}", c.theta[i], c.std[i]);
+            match rel[i] {
+                Some(r) => println!("  ({:.2e} relative)", r),
+                None => println!(),
+            }
+        }
+        println!("  (m1 = 1 normalisation; any unbiased estimator's std is at least this)");
+        if let Some(r) = args.target_rel {
+            print_plan(&c, r)?;
+        }
+    }
+    Ok(())
+}
+
+#[derive(clap::Args)]
+pub struct StudyArgs {
+    /// Number of Monte Carlo runs (seeds FIRST_SEED..FIRST_SEED+SEEDS).
+    #[arg(long, default_value_t = 100)]
+    pub seeds: u64,
+    /// First seed.
+    #[arg(long, default_value_t = 0)]
+    pub first_seed: u64,
+    /// Record lengths, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "300,1000,3000,10000")]
+    pub ns: Vec<usize>,
+    /// Signal-to-noise ratio std(w) / noise std (the paper's 43).
+    #[arg(long, default_value_t = 43.0)]
+    pub snr: f64,
+    /// Folder for oe_study.png (RMSE against N), oe_study.csv and oe_study.json (created if missing).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Print one JSON object on stdout and nothing else there.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run_study(args: &StudyArgs) -> Result<()> {
+    if args.seeds == 0 || args.ns.is_empty() || args.ns.iter().any(|&n| n < 10) {
+        bail!("need --seeds >= 1 and every N in --ns >= 10");
+    }
+    if !(args.snr.is_finite() && args.snr > 0.0) {
+        bail!("--snr {} must be a finite number > 0", args.snr);
+    }
+    let cfg = StudyConfig {
+        seeds: args.seeds,
+        first_seed: args.first_seed,
+        ns: args.ns.clone(),
+        snr: args.snr,
+    };
+    let bar = (!args.json).then(|| {
+        let b = ProgressBar::new(args.seeds);
+        b.set_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} runs (eta {eta})")
+                .expect("valid template"),
+        );
+        b
+    });
+    let started = Instant::now();
+    let r = oe::monte_carlo(&cfg, |d| {
+        if let Some(b) = &bar {
+            b.set_position(d);
+        }
+    });
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    let seconds = started.elapsed().as_secs_f64();
+    let mut files = vec![];
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
+        let png = dir.join("oe_study.png");
+        r.plot(&png)?;
+        let csv = dir.join("oe_study.csv");
+        let text = r.to_csv();
+        write_atomic(&csv, |w: &mut dyn Write| w.write_all(text.as_bytes()))
+            .with_context(|| format!("{}: cannot write", csv.display()))?;
+        let js = dir.join("oe_study.json");
+        let text = serde_json::to_string_pretty(&r)?;
+        write_atomic(&js, |w: &mut dyn Write| w.write_all(text.as_bytes()))
+            .with_context(|| format!("{}: cannot write", js.display()))?;
+        files = vec![png, csv, js];
+    }
+    if args.json {
+        let mut out = serde_json::to_value(&r)?;
+        out["seconds"] = json!(seconds);
+        out["files"] = json!(
+            files
+                .iter()
+                .map(|f| f.display().to_string())
+                .collect::<Vec<_>>()
+        );
+        println!("{out}");
+        return Ok(());
+    }
+    println!(
+        "Monte Carlo study of the paper example: {} runs, SNR {}, {:.1} s",
+        args.seeds, args.snr, seconds
+    );
+    let mut ns = args.ns.clone();
+    ns.sort_unstable();
+    ns.dedup();
+    for n in ns {
+        println!("N = {n}: RMSE per parameter (truth {:?})", r.truth);
+        print!("  {:<18}", "method");
+        for name in &r.names {
+            print!("{name:>11}");
+        }
+        println!("  median max rel");
+        for m in ["mrgia-paper", "mrgia-recommended", "oe", "crb"] {
+            if let Some(s) = r.get(m, n) {
+                print!("  {m:<18}");
+                for v in &s.rmse {
+                    print!("{v:>11.3e}");
+                }
+                println!("  {:.3e}", s.median_max_rel);
+            }
+        }
+        if let Some(s) = r.get("oe", n)
+            && let Some(c) = &s.coverage
+        {
+            print!("  {:<18}", "oe 95% coverage");
+            for v in c {
+                print!("{v:>11.2}");
+            }
+            println!("  ({} failed fits)", s.failures);
+        }
+    }
+    for f in files {
+        println!("wrote {}", f.display());
+    }
+    Ok(())
+}
