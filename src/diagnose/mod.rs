@@ -2,4 +2,11 @@
 //!
 //! - [`residual`]: the statistical tests that trace a residual to its cause.
 
+pub mod bench;
+pub mod catalogue;
+pub mod engine;
+pub mod fit;
+pub mod model;
+pub mod record;
+pub mod report;
 pub mod residual;

@@ -6,16 +6,19 @@
 //!
 //! | test | what it sees | effects it points to |
 //! | --- | --- | --- |
-//! | [`ljung_box`] | autocorrelation of e | coloured-noise, linear-order, periodic-disturbance |
+//! | [`ljung_box`] | autocorrelation of e | coloured-noise, linear-order, periodic-disturbance, friction (a slipping element shifts the output's zero, which then wanders) |
 //! | [`cross_correlation`] | e against past inputs | extra-delay, linear-order |
 //! | [`billings`] | higher-order correlations (Billings and Voon, 1986) | unmodelled nonlinearity: curved-borders, friction, saturation |
 //! | [`by_mode`] | e conditioned on up / down / held | friction (held and just-engaged samples), gap errors |
 //! | [`since_reversal`] | e against time since the last reversal | friction (elastic unloading after a reversal) |
-//! | [`against_x`] | e against x_hat and x_hat^2 on the borders | curved-borders |
-//! | [`drift`] | CUSUM and split-sample means by mode | gap-drift |
+//! | [`against_x`] | e against x_hat and x_hat^2 on the borders | curved-borders, saturation |
+//! | [`drift`] | CUSUM and split-sample means by mode | gap-drift, friction (slip moves the output's zero) |
 //! | [`spectrum_peak`] | periodogram peak against the median level | periodic-disturbance |
 //! | [`lattice`] | the values of y on a grid q k + o | quantization |
 //! | [`clipping`] | runs of y at its extremes | saturation |
+//! | [`extreme_increments`] | residual increments against model increments at the output's extremes | friction, saturation, curved-borders |
+//!
+//! The diagnosis uses exactly this map: `crate::diagnose::catalogue::EffectId::pointing_tests`.
 
 use crate::plant::Mode;
 use serde::Serialize;
@@ -564,6 +567,81 @@ pub fn clipping(y: &[f64]) -> (f64, f64, Verdict) {
     )
 }
 
+/// The incremental gain at the output's extremes: on the samples where the model output is in its top 15%
+/// and still rising (or bottom 15% and still falling), the least-squares slope of the residual's increment
+/// e(k) - e(k-1) on the model's increment y_hat(k) - y_hat(k-1). With nothing missing the residual's increments
+/// are noise and the slope is zero; an output that stops while the model keeps going (friction slipping,
+/// saturation) gives a slope near -1, a border that bends gives a slope of the bend's sign. Rejects when
+/// either slope's |t| exceeds 4 (conservative: the test looks at two groups, and the increments of a
+/// white residual are negatively correlated, which makes the t-ratio's nominal standard error too large).
+pub fn extreme_increments(e: &[f64], y_hat: &[f64]) -> Verdict {
+    let n = e.len().min(y_hat.len());
+    let mut sorted: Vec<f64> = y_hat[..n].to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let mut worst = 0.0f64;
+    let mut detail = Vec::new();
+    if n >= 20 {
+        let hi = sorted[(0.85 * (n - 1) as f64) as usize];
+        let lo = sorted[(0.15 * (n - 1) as f64) as usize];
+        for (label, top) in [("top", true), ("bottom", false)] {
+            let idx: Vec<usize> = (1..n)
+                .filter(|&k| {
+                    let dy = y_hat[k] - y_hat[k - 1];
+                    if top {
+                        y_hat[k] >= hi && dy > 0.0
+                    } else {
+                        y_hat[k] <= lo && dy < 0.0
+                    }
+                })
+                .collect();
+            if idx.len() < 10 {
+                continue;
+            }
+            let (mut sxx, mut sxy) = (0.0, 0.0);
+            for &k in &idx {
+                let (dx, de) = (y_hat[k] - y_hat[k - 1], e[k] - e[k - 1]);
+                sxx += dx * dx;
+                sxy += dx * de;
+            }
+            if sxx <= 0.0 {
+                continue;
+            }
+            let b = sxy / sxx;
+            let ss: f64 = idx
+                .iter()
+                .map(|&k| {
+                    let r = (e[k] - e[k - 1]) - b * (y_hat[k] - y_hat[k - 1]);
+                    r * r
+                })
+                .sum();
+            let se = (ss / (idx.len() - 1) as f64 / sxx).sqrt();
+            let t = if se > 0.0 {
+                b / se
+            } else if b != 0.0 {
+                f64::INFINITY
+            } else {
+                0.0
+            };
+            worst = worst.max(t.abs());
+            detail.push(format!(
+                "{label} 15%: slope {b:.3} (t {t:.1}, {} samples)",
+                idx.len()
+            ));
+        }
+    }
+    Verdict {
+        name: "incremental gain at the output extremes",
+        statistic: worst,
+        threshold: 4.0,
+        rejects: worst > 4.0,
+        detail: if detail.is_empty() {
+            "too few samples at the extremes".into()
+        } else {
+            detail.join("; ")
+        },
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -683,5 +761,26 @@ mod tests {
         assert!(drift(&e, &modes).rejects);
         let e0: Vec<f64> = noise.iter().map(|v| 0.1 * v).collect();
         assert!(!drift(&e0, &modes).rejects);
+    }
+
+    #[test]
+    fn extreme_increments_sees_an_output_that_stops() {
+        let n = 4000;
+        let noise = white(n, 12);
+        let yh: Vec<f64> = (0..n).map(|k| 2.0 * (k as f64 * 0.05).sin()).collect();
+        // Measured output clipped at +-1.5: the residual's increments follow -dy_hat there.
+        let e: Vec<f64> = (0..n)
+            .map(|k| yh[k].clamp(-1.5, 1.5) - yh[k] + 0.05 * noise[k])
+            .collect();
+        assert!(extreme_increments(&e, &yh).rejects);
+        let e0: Vec<f64> = noise.iter().map(|v| 0.05 * v).collect();
+        let mut false_alarms = 0;
+        for s in 0..40 {
+            let w = white(n, 200 + s);
+            let e: Vec<f64> = w.iter().map(|v| 0.05 * v).collect();
+            false_alarms += usize::from(extreme_increments(&e, &yh).rejects);
+        }
+        assert!(!extreme_increments(&e0, &yh).rejects);
+        assert!(false_alarms <= 1, "{false_alarms} of 40");
     }
 }

@@ -8,6 +8,7 @@
 
 pub mod backlash;
 pub mod continuous;
+pub mod effects;
 pub mod linear;
 pub mod poly;
 

@@ -2,6 +2,7 @@
 //!
 //! One file per command; no logic here beyond parsing and printing (the library does the work).
 
+mod diagnose;
 mod frequency;
 mod identify;
 mod oe;
@@ -30,6 +31,8 @@ enum Command {
     /// Run sine experiments on a simulated plant (continuous block + polynomial-border backlash) at several
     /// frequencies, identify each with paper 003's estimators, and plot |G(jw)| and the borders.
     Experiment(frequency::ExperimentArgs),
+    /// Diagnose a record: fit the declared model, test its residual, name the catalogue effect it lacks (or null).
+    Diagnose(diagnose::DiagnoseArgs),
     /// Cramer-Rao bound of the output-error model on an input record: plan an experiment.
     Crb(oe::CrbArgs),
     /// Monte Carlo study of the paper's example: MRGIA, output error and the Cramer-Rao bound against N.
@@ -55,6 +58,7 @@ fn main() {
         Command::Experiment(a) => frequency::run_experiment(a),
         Command::Identify(IdentifyCommand::Oe(a)) => oe::run_oe(a),
         Command::Crb(a) => oe::run_crb(a),
+        Command::Diagnose(a) => diagnose::run(a),
         Command::Study(a) => oe::run_study(a),
     };
     if let Err(e) = result {

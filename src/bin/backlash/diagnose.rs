@@ -1,0 +1,224 @@
+//! `backlash diagnose`: fit the declared model, test its residual, and name the catalogue effect it lacks.
+
+use anyhow::{Context, Result, bail};
+use backlash::diagnose::engine::{DiagnoseConfig, diagnose};
+use backlash::diagnose::record::decimate;
+use backlash::diagnose::report::{ReportInput, Validation, write_report};
+use backlash::io::Table;
+use serde_json::json;
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args)]
+pub struct DiagnoseArgs {
+    /// Data file: CSV with columns time,u,y (any order; other columns ignored; names configurable).
+    pub file: PathBuf,
+    /// Number of a coefficients of the declared model (0..4).
+    #[arg(long)]
+    pub na: usize,
+    /// Highest b index of the declared model (0..4).
+    #[arg(long)]
+    pub nb: usize,
+    /// Input delay of the declared model, in samples after decimation (>= 1).
+    #[arg(long)]
+    pub delay: usize,
+    /// Print one JSON object on stdout and nothing else there.
+    #[arg(long)]
+    pub json: bool,
+    /// Write report.md and PNG figures into this folder (created if needed).
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Average blocks of N samples into one before anything else (anti-alias mean, then one sample per
+    /// block); for records sampled far faster than their dynamics.
+    #[arg(long, default_value_t = 1)]
+    pub decimate: usize,
+    /// Another record (same columns) to simulate the fitted models on: cross-record validation. Repeatable.
+    #[arg(long)]
+    pub validate_on: Vec<PathBuf>,
+    /// Share of the record used for fitting; the rest is held out (0.3..0.95).
+    #[arg(long, default_value_t = 0.7)]
+    pub fit_fraction: f64,
+    /// Seed of the fit's perturbed restarts (the result is deterministic for a seed).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Name of the time column.
+    #[arg(long, default_value = "time")]
+    pub time_col: String,
+    /// Name of the input column.
+    #[arg(long, default_value = "u")]
+    pub u_col: String,
+    /// Name of the output column.
+    #[arg(long, default_value = "y")]
+    pub y_col: String,
+}
+
+/// Read (time, u, y) and decimate.
+fn load(path: &Path, args: &DiagnoseArgs) -> Result<[Vec<f64>; 3]> {
+    let names = [
+        args.time_col.as_str(),
+        args.u_col.as_str(),
+        args.y_col.as_str(),
+    ];
+    let table = Table::read(path, &names)?;
+    let cols: Vec<&[f64]> = names
+        .iter()
+        .map(|n| table.column(n).expect("required column"))
+        .collect();
+    let mut d = decimate(&cols, args.decimate).into_iter();
+    let (t, u, y) = (d.next().unwrap(), d.next().unwrap(), d.next().unwrap());
+    Ok([t, u, y])
+}
+
+/// Median sample period.
+fn sample_period(t: &[f64]) -> Option<f64> {
+    let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if dt.is_empty() {
+        return None;
+    }
+    dt.sort_by(f64::total_cmp);
+    Some(dt[dt.len() / 2])
+}
+
+fn stem(p: &Path) -> String {
+    p.file_stem()
+        .map_or("record".into(), |s| s.to_string_lossy().into_owned())
+}
+
+pub fn run(args: &DiagnoseArgs) -> Result<()> {
+    if args.decimate == 0 {
+        bail!("--decimate must be at least 1");
+    }
+    let [t, u, y] = load(&args.file, args)?;
+    let ts = sample_period(&t);
+    let mut cfg = DiagnoseConfig::new(args.na, args.nb, args.delay);
+    cfg.fit_fraction = args.fit_fraction;
+    cfg.seed = args.seed;
+    let d = diagnose(&u, &y, &cfg)
+        .with_context(|| format!("{}: cannot diagnose", args.file.display()))?;
+
+    let mut validations = Vec::new();
+    for path in &args.validate_on {
+        let [tv, uv, yv] = load(path, args)?;
+        let result = d.cross_validate(&uv, &yv).with_context(|| {
+            format!(
+                "{}: the fitted models cannot be simulated on it",
+                path.display()
+            )
+        })?;
+        validations.push(Validation {
+            name: stem(path),
+            t: tv,
+            y: yv,
+            result,
+        });
+    }
+
+    let mut report_path = None;
+    if let Some(dir) = &args.report {
+        // The command as a user would type it (the program's own path replaced by its name).
+        let command = std::iter::once("backlash".to_string())
+            .chain(std::env::args().skip(1))
+            .collect::<Vec<_>>()
+            .join(" ");
+        let file = args.file.display().to_string();
+        let input = ReportInput {
+            file: &file,
+            t: &t,
+            u: &u,
+            y: &y,
+            decimate: args.decimate,
+            command: Some(command),
+            validations: &validations,
+        };
+        report_path = Some(
+            write_report(dir, &d, &input)
+                .with_context(|| format!("{}: cannot write the report", dir.display()))?,
+        );
+    }
+
+    if args.json {
+        let mut out = d.to_json(ts);
+        out["file"] = json!(args.file.display().to_string());
+        out["decimate"] = json!(args.decimate);
+        out["Ts"] = json!(ts);
+        out["validate_on"] = json!(
+            args.validate_on
+                .iter()
+                .zip(&validations)
+                .map(|(p, v)| json!({
+                    "file": p.display().to_string(),
+                    "samples": v.result.samples,
+                    "y_std": v.result.y_std,
+                    "rmse_before": v.result.rmse_before,
+                    "rmse_after": v.result.rmse_after,
+                }))
+                .collect::<Vec<_>>()
+        );
+        out["report"] = json!(report_path.as_ref().map(|p| p.display().to_string()));
+        println!("{out}");
+        return Ok(());
+    }
+
+    println!(
+        "Diagnosis of {} ({} samples{}; fit on the first {}, {} held out)",
+        args.file.display(),
+        d.n,
+        if args.decimate > 1 {
+            format!(" after decimation by {}", args.decimate)
+        } else {
+            String::new()
+        },
+        d.n_fit,
+        d.n - d.n_fit
+    );
+    match d.effect() {
+        Some(c) => println!(
+            "  effect: {} (pointed to by: {}); held-out RMSE {:.6} -> {:.6} ({} error)",
+            c.id,
+            d.pointing_test().unwrap_or("-"),
+            d.base_heldout_rmse,
+            c.heldout_rmse,
+            c.error_kind
+        ),
+        None => println!(
+            "  effect: null (no extension is supported); held-out RMSE {:.6}",
+            d.base_heldout_rmse
+        ),
+    }
+    println!("  residual tests (fit part of the declared model's residual):");
+    for t in &d.tests {
+        println!(
+            "    [{}] {}: {:.3} (threshold {:.3})",
+            if t.verdict.rejects {
+                "reject"
+            } else {
+                "  ok  "
+            },
+            t.verdict.name,
+            t.verdict.statistic,
+            t.verdict.threshold
+        );
+    }
+    if !d.candidates.is_empty() {
+        println!("  candidates:");
+        for c in &d.candidates {
+            println!(
+                "    {:<22} held-out {:.6} (z {:.2}), dBIC {:+.1}: {}",
+                c.id.as_str(),
+                c.heldout_rmse,
+                c.heldout_z,
+                c.delta_bic,
+                c.reason
+            );
+        }
+    }
+    for v in &validations {
+        println!(
+            "  validation on {}: RMSE declared {:.6}, chosen {:.6} (output std {:.6})",
+            v.name, v.result.rmse_before, v.result.rmse_after, v.result.y_std
+        );
+    }
+    if let Some(p) = report_path {
+        println!("  report: {}", p.display());
+    }
+    Ok(())
+}

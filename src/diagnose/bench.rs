@@ -1,0 +1,653 @@
+//! Simulated test-bench records with one undeclared catalogue effect, with randomised magnitudes.
+//!
+//! The plant is paper 000's (a = [0.45, 0.55], b0 = 0.8, delay 1, m1 = 1, m2 = 1.5, c1 = 0.5, c2 = 1) driven by
+//! the paper's input (white, uniform, variance 1.93), and the declared model is always the paper's structure
+//! `na = 2, nb = 0, delay = 1`. Each scenario draws its magnitudes from a ChaCha8 generator seeded by the
+//! seed and the effect, within these ranges (w0, x0: the clean plant's backlash and linear outputs; SNR is
+//! std(noise-free output) / noise std):
+//!
+//! | effect | magnitude drawn | noise |
+//! | --- | --- | --- |
+//! | none (clean) | - | SNR 20..50 |
+//! | gap-drift | each gap grows by 30..80 % over the record (linear wear) | SNR 20..50 |
+//! | curved-borders | at s = 2 std(x0) the s^2 term is 5..15 % and the s^3 term 2..8 % of the linear one, random signs, borders kept increasing over +-3 std(x0) | SNR 20..50 |
+//! | extra-delay | true delay 2..4 (declared 1) | SNR 20..50 |
+//! | linear-order | either b1 = +-(0.3..0.6) b0, or a3 = +-(0.1..0.25) (stable) | SNR 20..50 |
+//! | coloured-noise | AR(1) noise, phi 0.5..0.9 | SNR 10..30 |
+//! | saturation | clipped at the 85..95 % and 5..15 % quantiles of w0; at the sensor or an end stop (before the noise), 50/50 | SNR 20..50 |
+//! | periodic-disturbance | amplitude 0.5..2 noise std, omega 0.05..3 rad/sample, any phase | SNR 20..50 |
+//! | quantization | step 0.1..0.3 std(w0), noise std = step / (6..20) (a coarse sensor: its noise is well below one step) | as said |
+//! | friction | k_e 0.5..2, slip levels 30..70 % of k_e times the half range of w0, each side drawn separately; the series or the contact form (play inside the spring, the plant's gaps as the play), 50/50 | SNR 20..50 |
+//!
+//! Why these: each is a magnitude a test engineer would want to know about (a gap growing by a third, a
+//! border 10 % off straight, a sensor step of a tenth of the signal's spread) and sits well inside what the
+//! plant can do (borders monotone, a stable linear block). For quantization, a step below about 3 noise
+//! standard deviations is dithered away by the noise and changes no prediction, so no data can show it; the
+//! range starts at 6.
+
+use rand_chacha::ChaCha8Rng;
+use rand_core::SeedableRng;
+use rand_distr::{Distribution, StandardUniform};
+
+use super::catalogue::EffectId;
+use crate::identify::mrgia::paper_input;
+use crate::plant::effects::{
+    ColouredNoise, CurvedBorders, Effects, Friction, FrictionForm, GapDrift, Periodic,
+    Quantization, Saturation, simulate_with_effects,
+};
+use crate::plant::{Plant, PlantParams};
+
+/// One simulated record.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scenario {
+    pub effect: Option<EffectId>,
+    pub seed: u64,
+    /// The true plant (its delay or orders may exceed the declared ones).
+    pub params: PlantParams,
+    pub effects: Effects,
+    /// Declared structure (na, nb, delay).
+    pub declared: (usize, usize, usize),
+    pub u: Vec<f64>,
+    pub y: Vec<f64>,
+    /// Noise-free output.
+    pub f: Vec<f64>,
+    /// The drawn magnitudes in words.
+    pub description: String,
+}
+
+struct Draw(ChaCha8Rng);
+
+impl Draw {
+    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        let r: f64 = StandardUniform.sample(&mut self.0);
+        lo + (hi - lo) * r
+    }
+    fn sign(&mut self) -> f64 {
+        if self.uniform(0.0, 1.0) < 0.5 {
+            -1.0
+        } else {
+            1.0
+        }
+    }
+}
+
+fn std_dev(v: &[f64]) -> f64 {
+    let n = v.len().max(1) as f64;
+    let m = v.iter().sum::<f64>() / n;
+    (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt()
+}
+
+fn quantile(v: &[f64], q: f64) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    s[((s.len() - 1) as f64 * q).round() as usize]
+}
+
+/// Is the linear block with these a's stable (impulse response decays)?
+fn stable(a: &[f64]) -> bool {
+    let mut h = vec![0.0; 3000];
+    h[0] = 1.0;
+    for k in 1..h.len() {
+        h[k] = -a
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| k > *i)
+            .map(|(i, ai)| ai * h[k - 1 - i])
+            .sum::<f64>();
+    }
+    h[2500..].iter().all(|v| v.abs() < 1e-6)
+}
+
+/// A record of `n` samples with `effect` (or none) under `seed`.
+pub fn scenario(effect: Option<EffectId>, seed: u64, n: usize) -> Scenario {
+    let tag = effect.map_or(0, |e| {
+        1 + EffectId::ALL.iter().position(|x| *x == e).unwrap_or(0) as u64
+    });
+    let mut d = Draw(ChaCha8Rng::seed_from_u64(
+        seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (tag << 56),
+    ));
+    let u = paper_input(n, seed);
+    let mut params = PlantParams::PAPER;
+    let clean = Plant::simulate(params, &u).expect("the paper plant is valid");
+    let w0: Vec<f64> = clean.iter().map(|o| o.w).collect();
+    let x0: Vec<f64> = clean.iter().map(|o| o.x).collect();
+    let (std_w, std_x) = (std_dev(&w0), std_dev(&x0));
+    let mut e = Effects::default();
+    let mut snr = d.uniform(20.0, 50.0);
+    let mut fixed_noise: Option<f64> = None;
+    let bl = params.backlash;
+    let description = match effect {
+        None => "clean".to_string(),
+        Some(EffectId::GapDrift) => {
+            let (g1, g2) = (d.uniform(0.3, 0.8), d.uniform(0.3, 0.8));
+            let span = (n - 1) as f64;
+            e.gap_drift = Some(GapDrift {
+                c1_rate: bl.c1 * g1 / span,
+                c2_rate: bl.c2 * g2 / span,
+            });
+            format!(
+                "c1 +{:.0}%, c2 +{:.0}% over the record",
+                100.0 * g1,
+                100.0 * g2
+            )
+        }
+        Some(EffectId::CurvedBorders) => {
+            let s_ref = 2.0 * std_x;
+            let mut c = CurvedBorders::default();
+            for _ in 0..100 {
+                let (m1, m2) = (bl.m1, bl.m2);
+                c = CurvedBorders {
+                    upper: [
+                        d.sign() * d.uniform(0.05, 0.15) * m1 / s_ref,
+                        d.sign() * d.uniform(0.02, 0.08) * m1 / (s_ref * s_ref),
+                    ],
+                    lower: [
+                        d.sign() * d.uniform(0.05, 0.15) * m2 / s_ref,
+                        d.sign() * d.uniform(0.02, 0.08) * m2 / (s_ref * s_ref),
+                    ],
+                };
+                let increasing = (-30..=30).all(|i| {
+                    let s = i as f64 / 10.0 * std_x;
+                    m1 + 2.0 * c.upper[0] * s + 3.0 * c.upper[1] * s * s > 0.2 * m1
+                        && m2 + 2.0 * c.lower[0] * s + 3.0 * c.lower[1] * s * s > 0.2 * m2
+                });
+                if increasing {
+                    break;
+                }
+            }
+            e.curved_borders = Some(c);
+            format!(
+                "upper [{:.3}, {:.4}], lower [{:.3}, {:.4}]",
+                c.upper[0], c.upper[1], c.lower[0], c.lower[1]
+            )
+        }
+        Some(EffectId::ExtraDelay) => {
+            let extra = 1 + (d.uniform(0.0, 3.0) as usize).min(2);
+            params.arx.delay += extra;
+            format!("true delay {}", params.arx.delay)
+        }
+        Some(EffectId::LinearOrder) => {
+            if d.uniform(0.0, 1.0) < 0.5 {
+                params.arx.nb = 1;
+                params.arx.b[1] = d.sign() * d.uniform(0.3, 0.6) * params.arx.b[0];
+                format!("b1 = {:.3}", params.arx.b[1])
+            } else {
+                params.arx.na = 3;
+                let mut a3 = d.sign() * d.uniform(0.1, 0.25);
+                if !stable(&[params.arx.a[0], params.arx.a[1], a3]) {
+                    a3 = -a3;
+                }
+                params.arx.a[2] = a3;
+                format!("a3 = {a3:.3}")
+            }
+        }
+        Some(EffectId::ColouredNoise) => {
+            let phi = d.uniform(0.5, 0.9);
+            snr = d.uniform(10.0, 30.0);
+            e.coloured_noise = Some(ColouredNoise { phi });
+            format!("AR(1) phi {phi:.2}")
+        }
+        Some(EffectId::Saturation) => {
+            let (qh, ql) = (d.uniform(0.85, 0.95), d.uniform(0.05, 0.15));
+            let before = d.uniform(0.0, 1.0) < 0.5;
+            e.saturation = Some(Saturation {
+                lo: quantile(&w0, ql),
+                hi: quantile(&w0, qh),
+                before_noise: before,
+            });
+            format!(
+                "clipped at the {:.0}% / {:.0}% quantiles, {}",
+                100.0 * ql,
+                100.0 * qh,
+                if before {
+                    "end stop (before the noise)"
+                } else {
+                    "sensor range"
+                }
+            )
+        }
+        Some(EffectId::PeriodicDisturbance) => {
+            let rel = d.uniform(0.5, 2.0);
+            let omega = d.uniform(0.05, 3.0);
+            let phase = d.uniform(0.0, 2.0 * std::f64::consts::PI);
+            let noise = std_w / snr;
+            e.periodic = Some(Periodic {
+                amplitude: rel * noise,
+                omega,
+                phase,
+            });
+            format!("amplitude {rel:.2} noise std, omega {omega:.3} rad/sample")
+        }
+        Some(EffectId::Quantization) => {
+            let step = d.uniform(0.1, 0.3) * std_w;
+            let ratio = d.uniform(6.0, 20.0);
+            let offset = d.uniform(0.0, step);
+            fixed_noise = Some(step / ratio);
+            e.quantization = Some(Quantization { step, offset });
+            format!("step {:.3} std(w), noise step/{ratio:.1}", step / std_w)
+        }
+        Some(EffectId::Friction) => {
+            let k_e = d.uniform(0.5, 2.0);
+            let half = 0.5 * (quantile(&w0, 1.0) - quantile(&w0, 0.0));
+            let (fp, fm) = (d.uniform(0.3, 0.7), d.uniform(0.3, 0.7));
+            let form = if d.uniform(0.0, 1.0) < 0.5 {
+                FrictionForm::Series
+            } else {
+                FrictionForm::Contact
+            };
+            e.friction = Some(Friction {
+                k_e,
+                f_plus: fp * k_e * half,
+                f_minus: fm * k_e * half,
+                form,
+            });
+            format!(
+                "{form:?} form, k_e {k_e:.2}, slip at +{:.0}% / -{:.0}% of the elastic range",
+                100.0 * fp,
+                100.0 * fm
+            )
+        }
+    };
+    params.noise_std = 0.0;
+    let noise_free = simulate_with_effects(
+        &params,
+        &Effects {
+            coloured_noise: None,
+            ..e
+        },
+        &u,
+        0,
+    )
+    .expect("bench parameters are valid");
+    let f: Vec<f64> = noise_free.iter().map(|o| o.f).collect();
+    params.noise_std = fixed_noise.unwrap_or(std_dev(&f) / snr);
+    params.noise_seed = seed ^ 0x5EED_0000_0000;
+    let out = simulate_with_effects(&params, &e, &u, params.noise_seed)
+        .expect("bench parameters are valid");
+    Scenario {
+        effect,
+        seed,
+        params,
+        effects: e,
+        declared: (2, 0, 1),
+        y: out.iter().map(|o| o.y).collect(),
+        f,
+        u,
+        description: format!("{description}; noise std {:.4}", params.noise_std),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::engine::{DiagnoseConfig, Diagnosis, diagnose};
+    use std::time::Instant;
+
+    fn run(s: &Scenario) -> Diagnosis {
+        let (na, nb, d) = s.declared;
+        diagnose(&s.u, &s.y, &DiagnoseConfig::new(na, nb, d)).expect("diagnosis runs")
+    }
+
+    fn line(s: &Scenario, d: &Diagnosis, secs: f64) -> String {
+        let cands: Vec<String> = d
+            .candidates
+            .iter()
+            .map(|c| {
+                format!(
+                    "{}{}(z {:.1}, dBIC {:.0})",
+                    if c.supported { "+" } else { "-" },
+                    c.id,
+                    c.heldout_z,
+                    c.delta_bic
+                )
+            })
+            .collect();
+        format!(
+            "{:>22} seed {:>5}: -> {:>22} before {:.4} after {:.4} [{:.2}s, rounds {}] {} | {}",
+            s.effect.map_or("clean".into(), |e| e.to_string()),
+            s.seed,
+            d.effect_id().map_or("null".into(), |e| e.to_string()),
+            d.base_heldout_rmse,
+            d.after_rmse(),
+            secs,
+            d.base_rounds,
+            s.description,
+            cands.join(" ")
+        )
+    }
+
+    /// Seeds of the held-out check set: never used while the diagnosis was developed (development used
+    /// seeds 0..60 for every effect and 0..300 for clean records), so the magnitudes drawn from them are
+    /// new too.
+    const CHECK_SEEDS: std::ops::Range<u64> = 10_000..10_010;
+    const CLEAN_CHECK_SEEDS: std::ops::Range<u64> = 20_000..20_020;
+    const CHECK_N: usize = 3000;
+
+    /// The done-when of the issue for one effect: named in at least 9 of 10 check records, and the held-out
+    /// error falls in each of those.
+    fn check_effect(effect: EffectId) {
+        let mut named = 0;
+        let mut lines = Vec::new();
+        for seed in CHECK_SEEDS {
+            let s = scenario(Some(effect), seed, CHECK_N);
+            let t = Instant::now();
+            let d = run(&s);
+            let ok = d.effect_id() == Some(effect) && d.after_rmse() < d.base_heldout_rmse;
+            named += usize::from(ok);
+            lines.push(line(&s, &d, t.elapsed().as_secs_f64()));
+        }
+        assert!(
+            named >= 9,
+            "{effect}: named in {named} of 10\n{}",
+            lines.join("\n")
+        );
+    }
+
+    #[test]
+    fn check_gap_drift() {
+        check_effect(EffectId::GapDrift);
+    }
+    #[test]
+    fn check_curved_borders() {
+        check_effect(EffectId::CurvedBorders);
+    }
+    #[test]
+    fn check_extra_delay() {
+        check_effect(EffectId::ExtraDelay);
+    }
+    #[test]
+    fn check_linear_order() {
+        check_effect(EffectId::LinearOrder);
+    }
+    #[test]
+    fn check_coloured_noise() {
+        check_effect(EffectId::ColouredNoise);
+    }
+    #[test]
+    fn check_saturation() {
+        check_effect(EffectId::Saturation);
+    }
+    #[test]
+    fn check_periodic_disturbance() {
+        check_effect(EffectId::PeriodicDisturbance);
+    }
+    #[test]
+    fn check_quantization() {
+        check_effect(EffectId::Quantization);
+    }
+    #[test]
+    fn check_friction() {
+        check_effect(EffectId::Friction);
+    }
+
+    /// Clean records: null in at least 19 of 20.
+    #[test]
+    fn check_clean_records_give_null() {
+        let mut false_positives = Vec::new();
+        for seed in CLEAN_CHECK_SEEDS {
+            let s = scenario(None, seed, CHECK_N);
+            let d = run(&s);
+            if d.effect_id().is_some() {
+                false_positives.push(line(&s, &d, 0.0));
+            }
+            assert_eq!(
+                d.effect_id().is_none(),
+                (d.after_rmse() - d.base_heldout_rmse).abs() == 0.0,
+                "after equals before exactly when null"
+            );
+        }
+        assert!(false_positives.len() <= 1, "{}", false_positives.join("\n"));
+    }
+
+    /// A constant output offset is no effect: the declared model absorbs it into the gaps
+    /// (m1 (x - c1) + d = m1 (x - (c1 - d / m1))), so the diagnosis stays null and the gaps move by d.
+    #[test]
+    fn constant_offset_is_absorbed_into_the_gaps() {
+        let s = scenario(None, 20_100, CHECK_N);
+        let offset = 0.7;
+        let y: Vec<f64> = s.y.iter().map(|v| v + offset).collect();
+        let d = diagnose(&s.u, &y, &DiagnoseConfig::new(2, 0, 1)).unwrap();
+        assert_eq!(d.effect_id(), None);
+        let b = &d.base.base;
+        let (c1, c2, m2) = (
+            s.params.backlash.c1,
+            s.params.backlash.c2,
+            s.params.backlash.m2,
+        );
+        assert!(
+            (b.c1 - (c1 - offset)).abs() < 0.02,
+            "c1 {} vs {}",
+            b.c1,
+            c1 - offset
+        );
+        assert!(
+            (b.c2 - (c2 + offset / m2)).abs() < 0.02,
+            "c2 {} vs {}",
+            b.c2,
+            c2 + offset / m2
+        );
+    }
+
+    /// Degenerate records do not break the diagnosis: a constant record, pure noise (no relation between u
+    /// and y), and refusals with a reason for bad input.
+    #[test]
+    fn degenerate_records() {
+        let zeros = vec![0.0; 1000];
+        let d = diagnose(&zeros, &zeros, &DiagnoseConfig::new(1, 0, 1)).unwrap();
+        assert_eq!(d.effect_id(), None);
+        let u = paper_input(2000, 3);
+        let y = paper_input(2000, 4);
+        let d = diagnose(&u, &y, &DiagnoseConfig::new(2, 2, 1)).unwrap();
+        assert!(d.base_heldout_rmse.is_finite());
+        use crate::diagnose::engine::DiagnoseError;
+        let mut bad = y.clone();
+        bad[17] = f64::NAN;
+        assert_eq!(
+            diagnose(&u, &bad, &DiagnoseConfig::new(1, 0, 1)).unwrap_err(),
+            DiagnoseError::NonFinite(17)
+        );
+        assert!(matches!(
+            diagnose(&u[..50], &y[..50], &DiagnoseConfig::new(1, 0, 1)),
+            Err(DiagnoseError::TooShort { .. })
+        ));
+        assert!(matches!(
+            diagnose(&u, &y, &DiagnoseConfig::new(5, 0, 1)),
+            Err(DiagnoseError::Structure(_))
+        ));
+    }
+
+    /// The JSON object has the contract's keys, and a report can be written.
+    #[test]
+    fn json_shape_and_report() {
+        let s = scenario(Some(EffectId::Saturation), 20_200, 1500);
+        let d = run(&s);
+        let j = d.to_json(Some(0.01));
+        assert!(j["before"]["rmse"].as_f64().unwrap() > 0.0);
+        assert!(j["after"]["rmse"].as_f64().unwrap() > 0.0);
+        assert_eq!(j["effect"]["id"], "saturation");
+        assert!(j["effect"]["pointed_by"].is_string());
+        assert!(j["effect"]["parameters"]["hi"].is_number());
+        assert!(j["tests"].as_array().unwrap().len() >= 10);
+        assert!(j["tests"][0]["points_to"].is_array());
+        let cands = j["candidates"].as_array().unwrap();
+        assert!(
+            cands
+                .iter()
+                .any(|c| c["id"] == "saturation" && c["supported"] == true)
+        );
+        for c in cands {
+            for key in ["heldout_rmse", "bic", "delta_bic", "heldout_z", "fit_rmse"] {
+                assert!(c[key].is_number(), "{key} in {c}");
+            }
+        }
+        let dir = std::env::temp_dir().join(format!("backlash-diag-{}", std::process::id()));
+        let t: Vec<f64> = (0..s.u.len()).map(|k| k as f64 * 0.01).collect();
+        let input = crate::diagnose::report::ReportInput {
+            file: "bench",
+            t: &t,
+            u: &s.u,
+            y: &s.y,
+            decimate: 1,
+            command: None,
+            validations: &[],
+        };
+        let md = crate::diagnose::report::write_report(&dir, &d, &input).unwrap();
+        let text = std::fs::read_to_string(&md).unwrap();
+        assert!(text.contains("**Effect: `saturation`**"));
+        for f in [
+            "heldout.png",
+            "residual.png",
+            "correlations.png",
+            "evidence.png",
+        ] {
+            assert!(dir.join(f).metadata().unwrap().len() > 1000, "{f}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Development sweep (not part of the suite): `DIAG_SEEDS=a..b DIAG_EFFECTS=clean,friction DIAG_N=3000
+    /// cargo test --release --lib dev_sweep -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn dev_sweep() {
+        let seeds = std::env::var("DIAG_SEEDS").unwrap_or("0..5".into());
+        let (a, b) = seeds.split_once("..").unwrap();
+        let (a, b): (u64, u64) = (a.parse().unwrap(), b.parse().unwrap());
+        let n: usize = std::env::var("DIAG_N")
+            .map(|v| v.parse().unwrap())
+            .unwrap_or(3000);
+        let effects: Vec<Option<EffectId>> = match std::env::var("DIAG_EFFECTS") {
+            Ok(list) => list
+                .split(',')
+                .map(|s| {
+                    if s == "clean" {
+                        None
+                    } else {
+                        Some(EffectId::parse(s).expect("effect id"))
+                    }
+                })
+                .collect(),
+            Err(_) => std::iter::once(None)
+                .chain(EffectId::ALL.into_iter().map(Some))
+                .collect(),
+        };
+        for eff in effects {
+            let mut hits = 0;
+            let t0 = Instant::now();
+            for seed in a..b {
+                let s = scenario(eff, seed, n);
+                let t = Instant::now();
+                let d = run(&s);
+                let ok =
+                    d.effect_id() == eff && (eff.is_none() || d.after_rmse() < d.base_heldout_rmse);
+                hits += usize::from(ok);
+                println!(
+                    "{} {}",
+                    if ok { "ok " } else { "BAD" },
+                    line(&s, &d, t.elapsed().as_secs_f64())
+                );
+                if !ok && std::env::var("DIAG_VERBOSE").is_ok() {
+                    for t in &d.tests {
+                        println!(
+                            "      {} {:>40}: {:.3} / {:.3}  {}",
+                            if t.verdict.rejects { "R" } else { " " },
+                            t.verdict.name,
+                            t.verdict.statistic,
+                            t.verdict.threshold,
+                            t.verdict.detail
+                        );
+                    }
+                    for c in &d.candidates {
+                        println!(
+                            "      cand {} heldout {:.4} z {:.2} dBIC {:.1} fit {:.4} {:?}",
+                            c.id, c.heldout_rmse, c.heldout_z, c.delta_bic, c.fit_rmse, c.model.ext
+                        );
+                    }
+                    println!("      base {:?}", d.base.base);
+                }
+            }
+            println!(
+                "== {}: {hits}/{} in {:.1}s",
+                eff.map_or("clean".into(), |e| e.to_string()),
+                b - a,
+                t0.elapsed().as_secs_f64()
+            );
+        }
+    }
+
+    /// Development look at a measured record: `DIAG_FILE=data/brfd/char_0.5Hz_36lb_1in.csv DIAG_DEC=16
+    /// DIAG_ORDERS=0,1,1 cargo test --release --lib dev_file -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn dev_file() {
+        use crate::io::Table;
+        let file = std::env::var("DIAG_FILE").unwrap_or("data/brfd/char_0.5Hz_36lb_1in.csv".into());
+        let dec: usize = std::env::var("DIAG_DEC")
+            .map(|v| v.parse().unwrap())
+            .unwrap_or(16);
+        let orders = std::env::var("DIAG_ORDERS").unwrap_or("0,1,1".into());
+        let table = Table::read(std::path::Path::new(&file), &["t", "u", "y"]).unwrap();
+        let cols = crate::diagnose::record::decimate(
+            &[table.column("u").unwrap(), table.column("y").unwrap()],
+            dec,
+        );
+        let others: Vec<Vec<Vec<f64>>> = std::env::var("DIAG_VALIDATE")
+            .map(|v| {
+                v.split(',')
+                    .map(|f| {
+                        let t = Table::read(std::path::Path::new(f), &["t", "u", "y"]).unwrap();
+                        crate::diagnose::record::decimate(
+                            &[t.column("u").unwrap(), t.column("y").unwrap()],
+                            dec,
+                        )
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        for o in orders.split(';') {
+            let v: Vec<usize> = o.split(',').map(|x| x.parse().unwrap()).collect();
+            let t = Instant::now();
+            let d = diagnose(&cols[0], &cols[1], &DiagnoseConfig::new(v[0], v[1], v[2])).unwrap();
+            println!(
+                "{file} dec {dec} orders {o}: {} samples -> {} before {:.4} after {:.4} ({:.2}s) base {:?}",
+                d.n,
+                d.effect_id().map_or("null".into(), |e| e.to_string()),
+                d.base_heldout_rmse,
+                d.after_rmse(),
+                t.elapsed().as_secs_f64(),
+                d.base.base
+            );
+            for (i, v) in others.iter().enumerate() {
+                let cv = d.cross_validate(&v[0], &v[1]).unwrap();
+                println!(
+                    "   validate {i}: {} samples, y std {:.4}, rmse plain {:.4} extended {:.4}",
+                    cv.samples, cv.y_std, cv.rmse_before, cv.rmse_after
+                );
+            }
+            if std::env::var("DIAG_QUIET").is_ok() {
+                continue;
+            }
+            for t in &d.tests {
+                println!(
+                    "   {} {:>42}: {:.2} / {:.2}",
+                    if t.verdict.rejects { "R" } else { " " },
+                    t.verdict.name,
+                    t.verdict.statistic,
+                    t.verdict.threshold
+                );
+            }
+            for c in &d.candidates {
+                println!(
+                    "   cand {:>20} heldout {:.4} z {:6.2} dBIC {:8.1} fit {:.4} {:?} {:?}",
+                    c.id,
+                    c.heldout_rmse,
+                    c.heldout_z,
+                    c.delta_bic,
+                    c.fit_rmse,
+                    c.model.ext,
+                    c.model.base
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,315 @@
+//! A small Levenberg-Marquardt least-squares fitter for output-error fits of non-smooth models.
+//!
+//! The model is a black box `theta -> residuals` (the caller simulates its model and returns
+//! `y - y_model`); the Jacobian is by forward differences. The backlash makes the simulated output only
+//! piecewise smooth in the parameters (a sample that changes regime moves a kink), so the fitter is defensive:
+//!
+//! - a step is accepted only if the cost (sum of squared residuals) falls; otherwise the damping grows and the
+//!   step is retried from the same Jacobian (Marquardt's scaling `J^T J + lambda diag(J^T J)`);
+//! - a parameter vector whose simulation is invalid (the closure returns `false`: unstable, non-finite, out of
+//!   range) counts as an infinite cost;
+//! - [`fit_multistart`] runs from several starts and keeps the lowest cost.
+//!
+//! The finite-difference step of parameter j is `fd_rel (|theta_j| + typ_j)`, with `typ_j` a typical
+//! magnitude given by the caller (so that a parameter that starts at zero still gets a sensible step).
+
+use nalgebra::{DMatrix, DVector};
+
+/// Settings of [`levenberg_marquardt`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LmOptions {
+    /// Most Jacobian evaluations (outer iterations).
+    pub max_iter: usize,
+    /// Stop when two consecutive accepted steps lower the cost by less than `rel_tol` of it.
+    pub rel_tol: f64,
+    /// Relative finite-difference step.
+    pub fd_rel: f64,
+    /// Initial damping.
+    pub lambda0: f64,
+    /// Give up when the damping exceeds this (no descent direction the fitter can find).
+    pub lambda_max: f64,
+}
+
+impl Default for LmOptions {
+    fn default() -> Self {
+        Self {
+            max_iter: 60,
+            rel_tol: 1e-7,
+            fd_rel: 1e-6,
+            lambda0: 1e-3,
+            lambda_max: 1e8,
+        }
+    }
+}
+
+/// The result of a fit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LmFit {
+    pub theta: Vec<f64>,
+    /// Sum of squared residuals at `theta`.
+    pub cost: f64,
+    /// Number of residuals.
+    pub n: usize,
+    /// Jacobian evaluations.
+    pub iterations: usize,
+    /// Residual evaluations (simulations).
+    pub evaluations: usize,
+}
+
+/// Why a fit could not start.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FitError {
+    #[error("the start point is not a valid model (the simulation failed)")]
+    InvalidStart,
+    #[error("no start points")]
+    NoStarts,
+}
+
+/// Residuals in `out` (cleared and refilled by the closure); `false` marks an invalid parameter vector.
+pub trait Residuals {
+    fn eval(&self, theta: &[f64], out: &mut Vec<f64>) -> bool;
+}
+
+impl<F: Fn(&[f64], &mut Vec<f64>) -> bool> Residuals for F {
+    fn eval(&self, theta: &[f64], out: &mut Vec<f64>) -> bool {
+        self(theta, out)
+    }
+}
+
+fn cost_of(r: &[f64]) -> f64 {
+    r.iter().map(|v| v * v).sum()
+}
+
+fn evaluate<R: Residuals + ?Sized>(f: &R, theta: &[f64], out: &mut Vec<f64>) -> Option<f64> {
+    out.clear();
+    if !f.eval(theta, out) {
+        return None;
+    }
+    let c = cost_of(out);
+    c.is_finite().then_some(c)
+}
+
+/// Levenberg-Marquardt from `theta0`; `typ` gives each parameter's typical magnitude (finite-difference
+/// steps). Parameters listed in `fixed` are not moved.
+pub fn levenberg_marquardt<R: Residuals + ?Sized>(
+    f: &R,
+    theta0: &[f64],
+    typ: &[f64],
+    fixed: &[usize],
+    opts: &LmOptions,
+) -> Result<LmFit, FitError> {
+    let p = theta0.len();
+    assert_eq!(typ.len(), p, "one typical magnitude per parameter");
+    let free: Vec<usize> = (0..p).filter(|j| !fixed.contains(j)).collect();
+    let mut theta = theta0.to_vec();
+    let mut r = Vec::new();
+    let mut cost = evaluate(f, &theta, &mut r).ok_or(FitError::InvalidStart)?;
+    let n = r.len();
+    let mut evaluations = 1;
+    let mut lambda = opts.lambda0;
+    let mut iterations = 0;
+    let mut small = 0;
+    let q = free.len();
+    if q == 0 || n == 0 {
+        return Ok(LmFit {
+            theta,
+            cost,
+            n,
+            iterations,
+            evaluations,
+        });
+    }
+    let mut jac = vec![0.0; n * q];
+    let mut rt = Vec::with_capacity(n);
+    let mut trial = theta.clone();
+    'outer: while iterations < opts.max_iter {
+        iterations += 1;
+        // Forward-difference Jacobian, column-major over the free parameters.
+        for (c, &j) in free.iter().enumerate() {
+            let h0 = opts.fd_rel * (theta[j].abs() + typ[j].abs()).max(f64::MIN_POSITIVE);
+            let col = &mut jac[c * n..(c + 1) * n];
+            // Forward difference; if theta + h is not a valid model (theta sits on the edge of the valid
+            // region), the backward one; if neither, the parameter is locally inert.
+            let mut done = false;
+            for sign in [1.0, -1.0] {
+                trial.copy_from_slice(&theta);
+                trial[j] += sign * h0;
+                let h = trial[j] - theta[j];
+                evaluations += 1;
+                if h != 0.0 && evaluate(f, &trial, &mut rt).is_some() && rt.len() == n {
+                    // r = y - model: d r / d theta = (r(theta + h) - r(theta)) / h.
+                    for i in 0..n {
+                        col[i] = (rt[i] - r[i]) / h;
+                    }
+                    done = true;
+                    break;
+                }
+            }
+            if !done {
+                col.iter_mut().for_each(|v| *v = 0.0);
+            }
+        }
+        let mut h = DMatrix::<f64>::zeros(q, q);
+        let mut g = DVector::<f64>::zeros(q);
+        for a in 0..q {
+            let ca = &jac[a * n..(a + 1) * n];
+            g[a] = ca.iter().zip(&r).map(|(x, y)| x * y).sum();
+            for b in 0..=a {
+                let cb = &jac[b * n..(b + 1) * n];
+                let v: f64 = ca.iter().zip(cb).map(|(x, y)| x * y).sum();
+                h[(a, b)] = v;
+                h[(b, a)] = v;
+            }
+        }
+        let dmax = (0..q).map(|a| h[(a, a)]).fold(0.0f64, f64::max);
+        if dmax == 0.0 {
+            break;
+        }
+        loop {
+            let mut a = h.clone();
+            for d in 0..q {
+                a[(d, d)] += lambda * (h[(d, d)] + 1e-9 * dmax);
+            }
+            // Minimising |r(theta + delta)|^2 with r(theta + delta) ~ r + J delta: (J^T J) delta = -J^T r.
+            let step = a.cholesky().map(|c| c.solve(&(-&g)));
+            if let Some(delta) = step {
+                trial.copy_from_slice(&theta);
+                for (c, &j) in free.iter().enumerate() {
+                    trial[j] += delta[c];
+                }
+                evaluations += 1;
+                if let Some(c_new) = evaluate(f, &trial, &mut rt)
+                    && rt.len() == n
+                    && c_new < cost
+                {
+                    let gain = cost - c_new;
+                    theta.copy_from_slice(&trial);
+                    std::mem::swap(&mut r, &mut rt);
+                    cost = c_new;
+                    lambda = (lambda / 3.0).max(1e-12);
+                    if gain < opts.rel_tol * cost {
+                        small += 1;
+                        if small >= 2 {
+                            break 'outer;
+                        }
+                    } else {
+                        small = 0;
+                    }
+                    break;
+                }
+            }
+            lambda *= 4.0;
+            if lambda > opts.lambda_max {
+                break 'outer;
+            }
+        }
+    }
+    Ok(LmFit {
+        theta,
+        cost,
+        n,
+        iterations,
+        evaluations,
+    })
+}
+
+/// [`levenberg_marquardt`] from each start; the lowest cost wins. Starts whose simulation fails are skipped.
+pub fn fit_multistart<R: Residuals + ?Sized>(
+    f: &R,
+    starts: &[Vec<f64>],
+    typ: &[f64],
+    fixed: &[usize],
+    opts: &LmOptions,
+) -> Result<LmFit, FitError> {
+    if starts.is_empty() {
+        return Err(FitError::NoStarts);
+    }
+    let mut best: Option<LmFit> = None;
+    for s in starts {
+        if let Ok(fit) = levenberg_marquardt(f, s, typ, fixed, opts)
+            && best.as_ref().is_none_or(|b| fit.cost < b.cost)
+        {
+            best = Some(fit);
+        }
+    }
+    best.ok_or(FitError::InvalidStart)
+}
+
+/// Bayesian information criterion of a Gaussian least-squares fit: `n ln(cost / n) + k ln n`.
+pub fn bic(cost: f64, n: usize, k: usize) -> f64 {
+    let nf = n.max(1) as f64;
+    nf * (cost.max(f64::MIN_POSITIVE) / nf).ln() + k as f64 * nf.ln()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fits_an_exponential() {
+        // y = 2 exp(-0.3 t) + 0.5, exact data.
+        let t: Vec<f64> = (0..50).map(|k| k as f64 * 0.2).collect();
+        let y: Vec<f64> = t.iter().map(|t| 2.0 * (-0.3 * t).exp() + 0.5).collect();
+        let f = |th: &[f64], out: &mut Vec<f64>| {
+            out.extend(
+                t.iter()
+                    .zip(&y)
+                    .map(|(t, y)| y - (th[0] * (-th[1] * t).exp() + th[2])),
+            );
+            true
+        };
+        let fit = levenberg_marquardt(&f, &[1.0, 1.0, 0.0], &[1.0; 3], &[], &LmOptions::default())
+            .unwrap();
+        assert!((fit.theta[0] - 2.0).abs() < 1e-6, "{:?}", fit.theta);
+        assert!((fit.theta[1] - 0.3).abs() < 1e-6);
+        assert!((fit.theta[2] - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn fixed_parameters_stay_and_invalid_region_is_avoided() {
+        let x: Vec<f64> = (0..30).map(|k| k as f64 / 10.0).collect();
+        // Model y = a sqrt(b) x, only valid for b >= 0; truth a = 1 with b fixed at 4.
+        let y: Vec<f64> = x.iter().map(|x| 2.0 * x).collect();
+        let f = |th: &[f64], out: &mut Vec<f64>| {
+            if th[1] < 0.0 {
+                return false;
+            }
+            out.extend(x.iter().zip(&y).map(|(x, y)| y - th[0] * th[1].sqrt() * x));
+            true
+        };
+        let fit =
+            levenberg_marquardt(&f, &[0.1, 4.0], &[1.0, 1.0], &[1], &LmOptions::default()).unwrap();
+        assert_eq!(fit.theta[1], 4.0);
+        assert!((fit.theta[0] - 1.0).abs() < 1e-6);
+        assert_eq!(
+            levenberg_marquardt(&f, &[0.1, -1.0], &[1.0, 1.0], &[], &LmOptions::default()),
+            Err(FitError::InvalidStart)
+        );
+    }
+
+    #[test]
+    fn multistart_keeps_the_best() {
+        // A cost with two minima in theta: r = (theta^2 - 1)(theta - 3) scaled; the global one at 1 or -1.
+        let f = |th: &[f64], out: &mut Vec<f64>| {
+            let t = th[0];
+            out.push((t * t - 1.0) * (t - 3.0) * 0.1 + 0.01 * (t - 3.0));
+            out.push(0.3 * (t - 1.0));
+            true
+        };
+        let fit = fit_multistart(
+            &f,
+            &[vec![4.0], vec![0.5]],
+            &[1.0],
+            &[],
+            &LmOptions::default(),
+        )
+        .unwrap();
+        assert!((fit.theta[0] - 1.0).abs() < 0.2, "{:?}", fit.theta);
+    }
+
+    #[test]
+    fn bic_penalises_parameters() {
+        assert!(bic(10.0, 100, 3) > bic(10.0, 100, 2));
+        assert!(bic(9.0, 100, 3) < bic(10.0, 100, 2));
+    }
+}

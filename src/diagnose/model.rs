@@ -1,0 +1,681 @@
+//! The models the diagnosis fits: the declared pseudo-Wiener model ([`BaseModel`], m1 = 1) and one
+//! catalogue extension ([`Extension`]). The per-sample logic is the test bench's
+//! ([`crate::plant::effects`]), so a fitted extension and a simulated rig mean exactly the same thing.
+
+use serde::Serialize;
+
+use crate::plant::effects::{
+    self, CurvedBorders, Effects, Friction, FrictionForm, GapDrift, Periodic, Quantization,
+    Saturation,
+};
+use crate::plant::{BacklashParams, MAX_ORDER, Mode};
+
+/// The declared model: `x(k) = -sum a_i x(k-i) + sum b_j u(k-delay-j)`, backlash with m1 = 1, m2, c1, c2.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BaseModel {
+    pub na: usize,
+    pub nb: usize,
+    pub delay: usize,
+    pub a: Vec<f64>,
+    pub b: Vec<f64>,
+    pub m1: f64,
+    pub m2: f64,
+    pub c1: f64,
+    pub c2: f64,
+}
+
+impl BaseModel {
+    /// Zero coefficients, unit slopes, zero gaps.
+    pub fn zero(na: usize, nb: usize, delay: usize) -> Self {
+        Self {
+            na,
+            nb,
+            delay,
+            a: vec![0.0; na],
+            b: vec![0.0; nb + 1],
+            m1: 1.0,
+            m2: 1.0,
+            c1: 0.0,
+            c2: 0.0,
+        }
+    }
+
+    pub fn backlash(&self) -> BacklashParams {
+        BacklashParams {
+            m1: self.m1,
+            m2: self.m2,
+            c1: self.c1,
+            c2: self.c2,
+        }
+    }
+
+    /// Number of estimated parameters: a, b, m2, c1, c2.
+    pub fn n_params(&self) -> usize {
+        self.na + self.nb + 4
+    }
+
+    /// `[a_1..a_na, b_0..b_nb, m2, c1, c2]`.
+    pub fn pack(&self) -> Vec<f64> {
+        let mut v = self.a.clone();
+        v.extend(&self.b);
+        v.extend([self.m2, self.c1, self.c2]);
+        v
+    }
+
+    /// The same structure with the parameters of `th` (the layout of [`BaseModel::pack`]).
+    pub fn unpack(&self, th: &[f64]) -> Self {
+        let (na, nb) = (self.na, self.nb);
+        Self {
+            a: th[..na].to_vec(),
+            b: th[na..na + nb + 1].to_vec(),
+            m2: th[na + nb + 1],
+            c1: th[na + nb + 2],
+            c2: th[na + nb + 3],
+            ..self.clone()
+        }
+    }
+
+    /// The same model with other orders and delay: coefficients kept where they exist, new ones zero.
+    pub fn with_orders(&self, na: usize, nb: usize, delay: usize) -> Self {
+        let mut a = self.a.clone();
+        a.resize(na, 0.0);
+        let mut b = self.b.clone();
+        b.resize(nb + 1, 0.0);
+        Self {
+            na,
+            nb,
+            delay,
+            a,
+            b,
+            ..self.clone()
+        }
+    }
+
+    /// Typical magnitudes of the parameters for finite differences and perturbations, from the data scale
+    /// (the gaps get the output's scale: m1 = 1 makes x and y the same units on the upper border).
+    pub fn typical(&self, y_scale: f64) -> Vec<f64> {
+        let bmax = self.b.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-6);
+        let mut t = vec![0.5; self.na];
+        t.extend(std::iter::repeat_n(bmax, self.nb + 1));
+        t.extend([1.0, 0.1 * y_scale, 0.1 * y_scale]);
+        t
+    }
+
+    /// The linear block's coefficients padded to the plant's arrays.
+    pub fn arx_arrays(&self) -> ([f64; MAX_ORDER], [f64; MAX_ORDER + 1]) {
+        let mut a = [0.0; MAX_ORDER];
+        let mut b = [0.0; MAX_ORDER + 1];
+        for (d, s) in a.iter_mut().zip(&self.a) {
+            *d = *s;
+        }
+        for (d, s) in b.iter_mut().zip(&self.b) {
+            *d = *s;
+        }
+        (a, b)
+    }
+}
+
+/// One catalogue extension with its parameters. `ExtraDelay` and `LinearOrder` change the base model's
+/// structure instead (see [`crate::diagnose::catalogue`]); they are `None` here.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum Extension {
+    None,
+    /// `c(k) = c + rate k`, rates per sample.
+    GapDrift {
+        c1_rate: f64,
+        c2_rate: f64,
+    },
+    /// Quadratic and cubic border terms (see [`CurvedBorders`]).
+    CurvedBorders {
+        upper: [f64; 2],
+        lower: [f64; 2],
+    },
+    /// The model output clipped to `[lo, hi]`.
+    Saturation {
+        lo: f64,
+        hi: f64,
+    },
+    /// `a_sin sin(omega k) + a_cos cos(omega k)` added to the output, k from the start of the record.
+    Periodic {
+        omega: f64,
+        a_sin: f64,
+        a_cos: f64,
+    },
+    /// The sensor rounds to `offset + step Z`; the model output is the expected reading with Gaussian noise
+    /// of std `sigma` before the rounding ([`effects::expected_reading`]; sigma = 0: plain rounding).
+    Quantization {
+        step: f64,
+        offset: f64,
+        sigma: f64,
+    },
+    /// Elasto-plastic Coulomb element with the backlash, k_e = 1 (absorbed into b, c1, c2, as m1 is);
+    /// `form` is where the play sits ([`FrictionForm`]: after it, or inside its spring).
+    Friction {
+        f_plus: f64,
+        f_minus: f64,
+        form: FrictionForm,
+    },
+    /// AR noise model on the output error: `e(k) = sum phi_i e(k-i) + white`.
+    ColouredNoise {
+        phi: Vec<f64>,
+    },
+}
+
+impl Extension {
+    /// Parameters in the fitted vector.
+    pub fn n_fitted(&self) -> usize {
+        match self {
+            Extension::None => 0,
+            Extension::Quantization { .. } => 1,
+            Extension::GapDrift { .. }
+            | Extension::Saturation { .. }
+            | Extension::Friction { .. } => 2,
+            Extension::CurvedBorders { .. } => 4,
+            Extension::Periodic { .. } => 3,
+            Extension::ColouredNoise { phi } => phi.len(),
+        }
+    }
+
+    /// Parameters estimated from the data (for the information criterion): quantization's step and offset
+    /// are estimated from the measured values (not by the least-squares fit) and count too.
+    pub fn n_estimated(&self) -> usize {
+        match self {
+            Extension::Quantization { .. } => 3,
+            e => e.n_fitted(),
+        }
+    }
+
+    /// The fitted parameters; gap-drift rates are scaled by `time_scale` (total drift over that many samples)
+    /// so that they have the gaps' magnitude.
+    pub fn pack(&self, time_scale: f64) -> Vec<f64> {
+        match self {
+            Extension::None => vec![],
+            Extension::Quantization { sigma, .. } => vec![*sigma],
+            Extension::GapDrift { c1_rate, c2_rate } => {
+                vec![c1_rate * time_scale, c2_rate * time_scale]
+            }
+            Extension::CurvedBorders { upper, lower } => {
+                vec![upper[0], upper[1], lower[0], lower[1]]
+            }
+            Extension::Saturation { lo, hi } => vec![*lo, *hi],
+            Extension::Periodic {
+                omega,
+                a_sin,
+                a_cos,
+            } => vec![*omega, *a_sin, *a_cos],
+            Extension::Friction {
+                f_plus, f_minus, ..
+            } => vec![*f_plus, *f_minus],
+            Extension::ColouredNoise { phi } => phi.clone(),
+        }
+    }
+
+    /// The inverse of [`Extension::pack`] for this variant.
+    pub fn unpack(&self, th: &[f64], time_scale: f64) -> Self {
+        match self {
+            Extension::None => self.clone(),
+            Extension::Quantization { step, offset, .. } => Extension::Quantization {
+                step: *step,
+                offset: *offset,
+                sigma: th[0].abs(),
+            },
+            Extension::GapDrift { .. } => Extension::GapDrift {
+                c1_rate: th[0] / time_scale,
+                c2_rate: th[1] / time_scale,
+            },
+            Extension::CurvedBorders { .. } => Extension::CurvedBorders {
+                upper: [th[0], th[1]],
+                lower: [th[2], th[3]],
+            },
+            Extension::Saturation { .. } => Extension::Saturation {
+                lo: th[0],
+                hi: th[1],
+            },
+            Extension::Periodic { .. } => Extension::Periodic {
+                omega: th[0],
+                a_sin: th[1],
+                a_cos: th[2],
+            },
+            Extension::Friction { form, .. } => Extension::Friction {
+                f_plus: th[0],
+                f_minus: th[1],
+                form: *form,
+            },
+            Extension::ColouredNoise { .. } => Extension::ColouredNoise { phi: th.to_vec() },
+        }
+    }
+
+    /// The deterministic part as test-bench effects (the noise model has none).
+    pub fn effects(&self) -> Effects {
+        let mut e = Effects::default();
+        match self {
+            Extension::None | Extension::ColouredNoise { .. } => {}
+            Extension::GapDrift { c1_rate, c2_rate } => {
+                e.gap_drift = Some(GapDrift {
+                    c1_rate: *c1_rate,
+                    c2_rate: *c2_rate,
+                })
+            }
+            Extension::CurvedBorders { upper, lower } => {
+                e.curved_borders = Some(CurvedBorders {
+                    upper: *upper,
+                    lower: *lower,
+                })
+            }
+            Extension::Saturation { lo, hi } => {
+                e.saturation = Some(Saturation {
+                    lo: *lo,
+                    hi: *hi,
+                    before_noise: true,
+                })
+            }
+            Extension::Periodic {
+                omega,
+                a_sin,
+                a_cos,
+            } => {
+                // a_s sin + a_c cos = A sin(omega k + phase), A = hypot, phase = atan2(a_c, a_s).
+                e.periodic = Some(Periodic {
+                    amplitude: a_sin.hypot(*a_cos),
+                    omega: *omega,
+                    phase: a_cos.atan2(*a_sin),
+                })
+            }
+            Extension::Quantization { step, offset, .. } => {
+                e.quantization = Some(Quantization {
+                    step: *step,
+                    offset: *offset,
+                })
+            }
+            Extension::Friction {
+                f_plus,
+                f_minus,
+                form,
+            } => {
+                e.friction = Some(Friction {
+                    k_e: 1.0,
+                    f_plus: *f_plus,
+                    f_minus: *f_minus,
+                    form: *form,
+                })
+            }
+        }
+        e
+    }
+}
+
+/// A base model with one extension.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Model {
+    pub base: BaseModel,
+    pub ext: Extension,
+}
+
+/// The model's signals over a record.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Simulation {
+    /// Linear block output.
+    pub x: Vec<f64>,
+    /// Backlash output.
+    pub w: Vec<f64>,
+    /// Model output (simulation, noise-free).
+    pub y: Vec<f64>,
+    pub mode: Vec<Mode>,
+}
+
+impl Model {
+    pub fn plain(base: BaseModel) -> Self {
+        Self {
+            base,
+            ext: Extension::None,
+        }
+    }
+
+    /// The fitted parameter vector: base, then the extension's.
+    pub fn pack(&self, time_scale: f64) -> Vec<f64> {
+        let mut v = self.base.pack();
+        v.extend(self.ext.pack(time_scale));
+        v
+    }
+
+    pub fn unpack(&self, th: &[f64], time_scale: f64) -> Self {
+        let nb = self.base.n_params();
+        Self {
+            base: self.base.unpack(&th[..nb]),
+            ext: self.ext.unpack(&th[nb..], time_scale),
+        }
+    }
+
+    /// Parameters counted by the information criterion.
+    pub fn n_estimated(&self) -> usize {
+        self.base.n_params() + self.ext.n_estimated()
+    }
+
+    /// Simulate samples `0..n` of the model output into `sim` (reusing its buffers), as a fit sees it.
+    /// Returns `false` if the model is not valid: m2 <= 0 or non-finite parameters, an unstable linear block,
+    /// `|x| > limit`, an empty friction slip range, or a backlash that visits an inverted memory zone on
+    /// these samples (see the chatter check in the loop).
+    pub fn simulate_into(&self, u: &[f64], n: usize, limit: f64, sim: &mut Simulation) -> bool {
+        self.run(u, n, limit, true, sim)
+    }
+
+    fn run(&self, u: &[f64], n: usize, limit: f64, strict: bool, sim: &mut Simulation) -> bool {
+        let b = &self.base;
+        if !(b.m2 > 0.0 && b.m2.is_finite() && b.c1.is_finite() && b.c2.is_finite()) {
+            return false;
+        }
+        if !is_stable(&b.a) {
+            return false;
+        }
+        if let Extension::Friction {
+            f_plus,
+            f_minus,
+            form,
+        } = &self.ext
+        {
+            // An empty slip range (also NaN) is not a friction element; with the play inside the spring the
+            // play must have a width and the slopes must be positive (they are stiffnesses).
+            let range = f_plus + f_minus;
+            if range.is_nan() || range <= 0.0 {
+                return false;
+            }
+            let play = b.c1 + b.c2;
+            if *form == FrictionForm::Contact && (play.is_nan() || play < 0.0) {
+                return false;
+            }
+        }
+        if let Extension::Saturation { lo, hi } = &self.ext
+            && (lo.is_nan() || hi.is_nan() || lo > hi)
+        {
+            return false;
+        }
+        let contact = matches!(
+            self.ext,
+            Extension::Friction {
+                form: FrictionForm::Contact,
+                ..
+            }
+        );
+        let n = n.min(u.len());
+        let bl = b.backlash();
+        let eff = self.ext.effects();
+        let drift = eff.gap_drift.as_ref();
+        let curve = eff.curved_borders.as_ref();
+        let friction = eff.friction.as_ref();
+        let slack = 1e-12 * limit
+            + match drift {
+                Some(d) => (d.c1_rate.abs() + d.c2_rate.abs()) * 1.000_001,
+                None => 0.0,
+            };
+        let sensor_needed = eff.periodic.is_some() || eff.saturation.is_some();
+        let expected = match &self.ext {
+            Extension::Quantization {
+                step,
+                offset,
+                sigma,
+            } => Some((
+                Quantization {
+                    step: *step,
+                    offset: *offset,
+                },
+                *sigma,
+            )),
+            _ => None,
+        };
+        if expected
+            .as_ref()
+            .is_some_and(|(q, _)| !(q.step > 0.0 && q.step.is_finite()))
+        {
+            return false;
+        }
+        sim.x.clear();
+        sim.w.clear();
+        sim.y.clear();
+        sim.mode.clear();
+        let (mut w_prev, mut f_prev) = (0.0, 0.0);
+        let d = b.delay;
+        for k in 0..n {
+            let mut x = 0.0;
+            for (i, ai) in b.a.iter().enumerate() {
+                if k > i {
+                    x -= ai * sim.x[k - 1 - i];
+                }
+            }
+            for (j, bj) in b.b.iter().enumerate() {
+                if k >= d + j {
+                    x += bj * u[k - d - j];
+                }
+            }
+            if x.is_nan() || x.abs() > limit {
+                return false;
+            }
+            if let (true, Some(fr)) = (contact, friction) {
+                let blk = drift.map_or(bl, |d| d.at(&bl, k as u64));
+                let (f, z, mode) = effects::contact_step(fr, &blk, x, w_prev);
+                let y = if sensor_needed {
+                    effects::sensor(&eff, f, 0.0, k as u64)
+                } else {
+                    f
+                };
+                sim.x.push(x);
+                sim.w.push(z);
+                sim.y.push(y);
+                sim.mode.push(mode);
+                w_prev = z;
+                f_prev = f;
+                continue;
+            }
+            let (w, mode) = effects::backlash_step(&bl, drift, curve, x, w_prev, k as u64);
+            if strict && k > 0 {
+                // A backlash whose memory zone is not inverted moves onto the upper border only while x rises
+                // and onto the lower one only while x falls (up to the borders' own drift). Where the zone is
+                // inverted (upper border left of the lower one) the rule flips between the borders every
+                // sample: a chatter no plant shows and a fit would exploit, so such parameters are refused.
+                let dx = x - sim.x[k - 1];
+                let ok = match mode {
+                    Mode::Up => dx >= -slack,
+                    Mode::Down => dx <= slack,
+                    Mode::Held => true,
+                };
+                if !ok {
+                    return false;
+                }
+            }
+            let f = match friction {
+                Some(fr) => effects::friction_step(fr, f_prev, w - w_prev),
+                None => w,
+            };
+            let y = if let Some((q, sigma)) = &expected {
+                effects::expected_reading(q, f, *sigma)
+            } else if sensor_needed {
+                effects::sensor(&eff, f, 0.0, k as u64)
+            } else {
+                f
+            };
+            sim.x.push(x);
+            sim.w.push(w);
+            sim.y.push(y);
+            sim.mode.push(mode);
+            w_prev = w;
+            f_prev = f;
+        }
+        sim.y.iter().all(|v| v.is_finite())
+    }
+
+    /// Simulate a fitted model over a record (held-out part, another record): the same as
+    /// [`Model::simulate_into`] except that a visit to an inverted memory zone is simulated by the contract's
+    /// rule rather than refused (a model fitted where its zone was valid must still give a prediction).
+    pub fn simulate(&self, u: &[f64], n: usize, limit: f64) -> Option<Simulation> {
+        let mut s = Simulation::default();
+        self.run(u, n, limit, false, &mut s).then_some(s)
+    }
+
+    /// One-step-ahead prediction of y(k) from y up to k-1: the simulation plus, with a noise model,
+    /// `sum phi_i (y(k-i) - s(k-i))` (s the simulation). Without a noise model the predictor of an
+    /// output-error model is its simulation.
+    pub fn predict_from(&self, sim: &[f64], y: &[f64]) -> Vec<f64> {
+        match &self.ext {
+            Extension::ColouredNoise { phi } => (0..sim.len())
+                .map(|k| {
+                    let mut p = sim[k];
+                    for (i, f) in phi.iter().enumerate() {
+                        if k > i {
+                            p += f * (y[k - 1 - i] - sim[k - 1 - i]);
+                        }
+                    }
+                    p
+                })
+                .collect(),
+            _ => sim.to_vec(),
+        }
+    }
+}
+
+/// Whether `1 + a_1 z^-1 + ... + a_n z^-n` has all its roots strictly inside the unit circle (Schur-Cohn
+/// step-down: every reflection coefficient below 1 in magnitude). An unstable linear block can stay bounded
+/// over a fit window and explode right after it, so the fit refuses it.
+pub fn is_stable(a: &[f64]) -> bool {
+    let mut c: Vec<f64> = a.to_vec();
+    while let Some(&k) = c.last() {
+        if k.is_nan() || k.abs() >= 1.0 {
+            return false;
+        }
+        let n = c.len();
+        let d = 1.0 - k * k;
+        c = (0..n - 1).map(|i| (c[i] - k * c[n - 2 - i]) / d).collect();
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plant::effects::simulate_with_effects;
+    use crate::plant::{ArxParams, PlantParams};
+
+    fn paper_base() -> BaseModel {
+        BaseModel {
+            na: 2,
+            nb: 0,
+            delay: 1,
+            a: vec![0.45, 0.55],
+            b: vec![0.8],
+            m1: 1.0,
+            m2: 1.5,
+            c1: 0.5,
+            c2: 1.0,
+        }
+    }
+
+    fn input(n: usize) -> Vec<f64> {
+        (0..n)
+            .map(|k| 2.0 * (k as f64 * 0.37).sin() + (k as f64 * 0.05).cos())
+            .collect()
+    }
+
+    #[test]
+    fn plain_model_is_the_plant_and_extensions_are_the_bench() {
+        let u = input(600);
+        let p = PlantParams::PAPER;
+        let exts = [
+            Extension::None,
+            Extension::GapDrift {
+                c1_rate: 1e-3,
+                c2_rate: 5e-4,
+            },
+            Extension::CurvedBorders {
+                upper: [0.1, -0.02],
+                lower: [0.05, 0.01],
+            },
+            Extension::Saturation { lo: -1.0, hi: 1.2 },
+            Extension::Periodic {
+                omega: 0.3,
+                a_sin: 0.2,
+                a_cos: -0.1,
+            },
+            Extension::Quantization {
+                step: 0.1,
+                offset: 0.02,
+                sigma: 0.0,
+            },
+            Extension::Friction {
+                f_plus: 0.8,
+                f_minus: 1.1,
+                form: FrictionForm::Series,
+            },
+            Extension::Friction {
+                f_plus: 0.8,
+                f_minus: 1.1,
+                form: FrictionForm::Contact,
+            },
+        ];
+        for ext in exts {
+            let m = Model {
+                base: paper_base(),
+                ext: ext.clone(),
+            };
+            let s = m.simulate(&u, u.len(), 1e9).unwrap();
+            let bench = simulate_with_effects(&p, &ext.effects(), &u, 0).unwrap();
+            for (k, o) in bench.iter().enumerate() {
+                assert!(
+                    (s.y[k] - o.y).abs() < 1e-12,
+                    "{ext:?} at {k}: {} vs {}",
+                    s.y[k],
+                    o.y
+                );
+                assert!((s.x[k] - o.x).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn pack_unpack_round_trip() {
+        let m = Model {
+            base: paper_base(),
+            ext: Extension::GapDrift {
+                c1_rate: 1e-4,
+                c2_rate: -2e-4,
+            },
+        };
+        let th = m.pack(1000.0);
+        assert_eq!(th.len(), 8);
+        let back = m.unpack(&th, 1000.0);
+        assert_eq!(back.base, m.base);
+        match back.ext {
+            Extension::GapDrift { c1_rate, c2_rate } => {
+                assert!((c1_rate - 1e-4).abs() < 1e-18 && (c2_rate + 2e-4).abs() < 1e-18)
+            }
+            _ => panic!(),
+        }
+    }
+
+    #[test]
+    fn unstable_model_is_refused_and_prediction_uses_the_noise_model() {
+        let mut b = paper_base();
+        b.a = vec![-2.5, 0.0];
+        assert!(Model::plain(b).simulate(&input(500), 500, 1e6).is_none());
+        let m = Model {
+            base: paper_base(),
+            ext: Extension::ColouredNoise { phi: vec![0.5] },
+        };
+        let sim = vec![1.0, 2.0, 3.0];
+        let y = vec![1.5, 2.0, 2.0];
+        assert_eq!(m.predict_from(&sim, &y), vec![1.0, 2.25, 3.0]);
+        let _ = ArxParams::PAPER;
+    }
+
+    #[test]
+    fn stability_test() {
+        assert!(is_stable(&[]));
+        assert!(is_stable(&[0.45, 0.55]));
+        assert!(is_stable(&[-0.9]));
+        assert!(!is_stable(&[1.03]));
+        assert!(!is_stable(&[-1.0]));
+        // (1 - 0.5 z^-1)(1 - 1.2 z^-1) = 1 - 1.7 z^-1 + 0.6 z^-2: a root at 1.2.
+        assert!(!is_stable(&[-1.7, 0.6]));
+        // (1 - 0.5 z^-1)(1 + 0.8 z^-1)(1 - 0.9 z^-1)
+        let (p, q, r) = (-0.5, 0.8, -0.9);
+        assert!(is_stable(&[p + q + r, p * q + p * r + q * r, p * q * r]));
+        assert!(!is_stable(&[0.0, 0.0, 1.01]));
+    }
+}
