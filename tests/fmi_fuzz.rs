@@ -39,6 +39,8 @@
 //! receives the one "%s" argument correctly on x86_64 Linux, to which this file is gated.
 #![cfg(all(target_arch = "x86_64", target_os = "linux"))]
 
+mod common;
+
 use backlash::fmi2::exports::*;
 use backlash::fmi2::ffi::*;
 use backlash::fmi2::instance::{Instance, SavedState};
@@ -50,81 +52,11 @@ use rand_core::{Rng, SeedableRng};
 use std::collections::VecDeque;
 use std::ffi::{CStr, c_char, c_void};
 use std::ptr::{null, null_mut};
-use std::sync::Mutex;
 use std::time::Instant;
 
 // ------------------------------------------------------------------------------------------------ logger
 
-#[derive(Debug, Clone)]
-struct Entry {
-    instance: String,
-    status: u32,
-    category: String,
-    message: String,
-}
-
-type Sink = Mutex<Vec<Entry>>;
-
-type FixedLogger = unsafe extern "C" fn(
-    Fmi2ComponentEnvironment,
-    Fmi2String,
-    Fmi2StatusC,
-    Fmi2String,
-    Fmi2String,
-    Fmi2String,
-);
-
-unsafe extern "C" fn record(
-    env: Fmi2ComponentEnvironment,
-    instance: Fmi2String,
-    status: Fmi2StatusC,
-    category: Fmi2String,
-    format: Fmi2String,
-    text: Fmi2String,
-) {
-    let s = |p: *const c_char| {
-        if p.is_null() {
-            "<NULL>".to_string()
-        } else {
-            unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
-        }
-    };
-    let format = s(format);
-    let message = if format == "%s" {
-        s(text)
-    } else {
-        format!("<format is {format:?}, not \"%s\">")
-    };
-    if env.is_null() {
-        return;
-    }
-    let sink = unsafe { &*(env as *const Sink) };
-    if let Ok(mut v) = sink.lock() {
-        v.push(Entry {
-            instance: s(instance),
-            status,
-            category: s(category),
-            message,
-        });
-    }
-}
-
-fn logger() -> Fmi2CallbackLogger {
-    // SAFETY: x86_64 SysV passes the one variadic pointer argument exactly like a sixth named one.
-    Some(unsafe {
-        std::mem::transmute::<
-            FixedLogger,
-            unsafe extern "C" fn(
-                Fmi2ComponentEnvironment,
-                Fmi2String,
-                Fmi2StatusC,
-                Fmi2String,
-                Fmi2String,
-                ...
-            ),
-        >(record)
-    })
-}
+use common::{Entry, Sink, logger};
 
 // ------------------------------------------------------------------------------------------------- model
 

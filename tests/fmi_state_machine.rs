@@ -32,6 +32,8 @@
 //! FMUs' platform, binaries/linux64).
 #![cfg(all(target_arch = "x86_64", target_os = "linux"))]
 
+mod common;
+
 use backlash::fmi2::exports::*;
 use backlash::fmi2::ffi::*;
 use backlash::fmi2::instance::Instance;
@@ -40,86 +42,10 @@ use backlash::fmi2::vars::{Causality, VarInfo, VarType, Variability};
 use backlash::fmus::{backlash_plant, mrgia_estimator};
 use std::ffi::{CStr, CString, c_char, c_void};
 use std::ptr::{null, null_mut};
-use std::sync::Mutex;
 
 // ------------------------------------------------------------------------------------------------ harness
 
-/// One logger call.
-#[derive(Debug, Clone, PartialEq)]
-struct Entry {
-    instance: String,
-    status: u32,
-    category: String,
-    message: String,
-}
-
-type Sink = Mutex<Vec<Entry>>;
-
-type FixedLogger = unsafe extern "C" fn(
-    Fmi2ComponentEnvironment,
-    Fmi2String,
-    Fmi2StatusC,
-    Fmi2String,
-    Fmi2String,
-    Fmi2String,
-);
-
-/// The logger as the layer calls it: "%s" and the text (see the module documentation). Never panics (a
-/// panic cannot unwind out of an `extern "C"` function).
-unsafe extern "C" fn record(
-    env: Fmi2ComponentEnvironment,
-    instance: Fmi2String,
-    status: Fmi2StatusC,
-    category: Fmi2String,
-    format: Fmi2String,
-    text: Fmi2String,
-) {
-    let s = |p: *const c_char| {
-        if p.is_null() {
-            "<NULL>".to_string()
-        } else {
-            // SAFETY: the layer passes NUL-terminated strings that outlive the call.
-            unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
-        }
-    };
-    let format = s(format);
-    let message = if format == "%s" {
-        s(text)
-    } else {
-        format!("<format is {format:?}, not \"%s\">")
-    };
-    if env.is_null() {
-        return;
-    }
-    // SAFETY: env is the `Sink` the test put in the callbacks; it outlives the instance.
-    let sink = unsafe { &*(env as *const Sink) };
-    if let Ok(mut v) = sink.lock() {
-        v.push(Entry {
-            instance: s(instance),
-            status,
-            category: s(category),
-            message,
-        });
-    }
-}
-
-fn logger() -> Fmi2CallbackLogger {
-    // SAFETY: see the module documentation: on x86_64 SysV a call through the variadic type with one vararg
-    // is ABI-identical to a call of this six-argument function.
-    Some(unsafe {
-        std::mem::transmute::<
-            FixedLogger,
-            unsafe extern "C" fn(
-                Fmi2ComponentEnvironment,
-                Fmi2String,
-                Fmi2StatusC,
-                Fmi2String,
-                Fmi2String,
-                ...
-            ),
-        >(record)
-    })
-}
+use common::{Entry, Sink, logger};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kind {

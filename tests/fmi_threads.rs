@@ -13,81 +13,16 @@
 //! receives the one "%s" argument correctly on x86_64 Linux, to which this file is gated.
 #![cfg(all(target_arch = "x86_64", target_os = "linux"))]
 
+mod common;
+
 use backlash::fmi2::exports::*;
 use backlash::fmi2::ffi::*;
 use backlash::fmus::{backlash_plant, mrgia_estimator};
 use backlash::plant::{Plant, PlantParams};
-use std::ffi::{CStr, CString, c_char, c_void};
+use std::ffi::{CString, c_char, c_void};
 use std::ptr::{null, null_mut};
-use std::sync::Mutex;
 
-#[derive(Debug, Clone)]
-struct Entry {
-    instance: String,
-    status: u32,
-    message: String,
-}
-
-type Sink = Mutex<Vec<Entry>>;
-
-type FixedLogger = unsafe extern "C" fn(
-    Fmi2ComponentEnvironment,
-    Fmi2String,
-    Fmi2StatusC,
-    Fmi2String,
-    Fmi2String,
-    Fmi2String,
-);
-
-unsafe extern "C" fn record(
-    env: Fmi2ComponentEnvironment,
-    instance: Fmi2String,
-    status: Fmi2StatusC,
-    _category: Fmi2String,
-    format: Fmi2String,
-    text: Fmi2String,
-) {
-    let s = |p: *const c_char| {
-        if p.is_null() {
-            "<NULL>".to_string()
-        } else {
-            unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
-        }
-    };
-    if env.is_null() {
-        return;
-    }
-    let message = if s(format) == "%s" {
-        s(text)
-    } else {
-        "<bad format>".into()
-    };
-    let sink = unsafe { &*(env as *const Sink) };
-    if let Ok(mut v) = sink.lock() {
-        v.push(Entry {
-            instance: s(instance),
-            status,
-            message,
-        });
-    }
-}
-
-fn logger() -> Fmi2CallbackLogger {
-    // SAFETY: x86_64 SysV passes the one variadic pointer argument exactly like a sixth named one.
-    Some(unsafe {
-        std::mem::transmute::<
-            FixedLogger,
-            unsafe extern "C" fn(
-                Fmi2ComponentEnvironment,
-                Fmi2String,
-                Fmi2StatusC,
-                Fmi2String,
-                Fmi2String,
-                ...
-            ),
-        >(record)
-    })
-}
+use common::{Sink, logger};
 
 const OK: u32 = Fmi2Status::Ok as u32;
 const ERROR: u32 = Fmi2Status::Error as u32;
