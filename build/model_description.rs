@@ -111,10 +111,38 @@ pub struct Unknown {
 
 /// Parse and check one description; `stem` is the file name without extension.
 pub fn load(stem: &str, text: &str) -> Result<ModelDescription, String> {
+    check_attribute_values(text)?;
     let md: ModelDescription =
         quick_xml::de::from_str(text).map_err(|e| format!("cannot parse: {e}"))?;
     check(stem, &md)?;
     Ok(md)
+}
+
+/// XML forbids a raw `<` in an attribute value; quick-xml's deserializer lets it through, strict parsers
+/// (lxml in FMPy) reject the whole file. Checked here so that the build fails instead of the importer.
+fn check_attribute_values(text: &str) -> Result<(), String> {
+    use quick_xml::events::Event;
+    let mut reader = quick_xml::Reader::from_str(text);
+    loop {
+        let pos = reader.buffer_position();
+        match reader.read_event() {
+            Ok(Event::Start(e) | Event::Empty(e)) => {
+                for a in e.attributes() {
+                    let a = a.map_err(|err| format!("bad attribute near byte {pos}: {err}"))?;
+                    if a.value.contains('<') {
+                        let line = text[..pos as usize].matches('\n').count() + 1;
+                        return Err(format!(
+                            "line {line}: attribute '{}' contains a raw '<' (write &lt;)",
+                            a.key.as_ref() as &str
+                        ));
+                    }
+                }
+            }
+            Ok(Event::Eof) => return Ok(()),
+            Ok(_) => {}
+            Err(err) => return Err(format!("cannot parse near byte {pos}: {err}")),
+        }
+    }
 }
 
 fn type_of(v: &ScalarVariable) -> Result<(&'static str, &TypeAttrs), String> {

@@ -3,6 +3,10 @@
 use super::backlash_plant::{self as md, Var};
 use crate::fmi2::Model;
 use crate::fmi2::vars::{Value, VarInfo};
+use crate::plant::effects::{
+    ColouredNoise, CurvedBorders, Effects, Friction, FrictionForm, GapDrift, Periodic,
+    Quantization, Saturation,
+};
 use crate::plant::{
     Plant, PlantExtensions, PlantOutput, PlantParams, PolyBacklashParams, TransferFunction,
 };
@@ -26,8 +30,134 @@ pub struct PlantFmu {
     linear: i32,
     num: [f64; 4],
     den: [f64; 5],
+    /// The test-bench effects as set (`crate::plant::effects`), in the FMU's units (per second, rad/s).
+    bench: Bench,
     u: f64,
     plant: Option<Plant>,
+}
+
+/// The test-bench parameters of the FMU. Each effect is off at its default: zero rates, straight curves,
+/// `friction = 0`, zero amplitude, `noise_phi = 0`, `saturation = 0`, `quant_step = 0`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+struct Bench {
+    c_rate: [f64; 2],
+    /// curve_up2, curve_up3, curve_down2, curve_down3.
+    curve: [f64; 4],
+    friction: i32,
+    k_e: f64,
+    f_plus: f64,
+    f_minus: f64,
+    dist: [f64; 3],
+    noise_phi: f64,
+    saturation: i32,
+    sat: [f64; 2],
+    quant: [f64; 2],
+}
+
+impl Bench {
+    const OFF: Self = Self {
+        c_rate: [0.0; 2],
+        curve: [0.0; 4],
+        friction: 0,
+        k_e: 1.0,
+        f_plus: 1.0,
+        f_minus: 1.0,
+        dist: [0.0; 3],
+        noise_phi: 0.0,
+        saturation: 0,
+        sat: [-1.0, 1.0],
+        quant: [0.0; 2],
+    };
+
+    /// The library's effects, with rates and frequencies per sample of period `ts`. The layer has checked
+    /// each value against the XML's min/max and refused NaN, so plain comparisons suffice; what the XML
+    /// cannot say (sat_lo <= sat_hi, |noise_phi| < 1, k_e > 0) is checked here, with the FMU's names.
+    fn effects(&self, ts: f64) -> Result<Effects, String> {
+        let bad = |name: &str, v: f64, why: &str| {
+            Err(format!("parameter {name} = {v} is invalid: {why}"))
+        };
+        let mut e = Effects::default();
+        if self.c_rate != [0.0; 2] {
+            e.gap_drift = Some(GapDrift {
+                c1_rate: self.c_rate[0] * ts,
+                c2_rate: self.c_rate[1] * ts,
+            });
+        }
+        if self.curve != [0.0; 4] {
+            e.curved_borders = Some(CurvedBorders {
+                upper: [self.curve[0], self.curve[1]],
+                lower: [self.curve[2], self.curve[3]],
+            });
+        }
+        let form = match self.friction {
+            0 => None,
+            1 => Some(FrictionForm::Series),
+            2 => Some(FrictionForm::Contact),
+            v => {
+                return bad(
+                    "friction",
+                    v as f64,
+                    "must be 0 (off), 1 (series) or 2 (contact)",
+                );
+            }
+        };
+        if let Some(form) = form {
+            if self.k_e <= 0.0 {
+                return bad("k_e", self.k_e, "must be > 0 when friction is on");
+            }
+            e.friction = Some(Friction {
+                k_e: self.k_e,
+                f_plus: self.f_plus,
+                f_minus: self.f_minus,
+                form,
+            });
+        }
+        if self.dist[0] != 0.0 {
+            e.periodic = Some(Periodic {
+                amplitude: self.dist[0],
+                omega: self.dist[1] * ts,
+                phase: self.dist[2],
+            });
+        }
+        if self.noise_phi != 0.0 {
+            if self.noise_phi.abs() >= 1.0 {
+                return bad("noise_phi", self.noise_phi, "must be in (-1, 1)");
+            }
+            e.coloured_noise = Some(ColouredNoise {
+                phi: self.noise_phi,
+            });
+        }
+        let before_noise = match self.saturation {
+            0 => None,
+            1 => Some(false),
+            2 => Some(true),
+            v => {
+                return bad(
+                    "saturation",
+                    v as f64,
+                    "must be 0 (off), 1 (sensor range) or 2 (end stop)",
+                );
+            }
+        };
+        if let Some(before_noise) = before_noise {
+            if self.sat[0] > self.sat[1] {
+                return bad("sat_lo", self.sat[0], "must be <= sat_hi");
+            }
+            e.saturation = Some(Saturation {
+                lo: self.sat[0],
+                hi: self.sat[1],
+                before_noise,
+            });
+        }
+        if self.quant[0] != 0.0 {
+            e.quantization = Some(Quantization {
+                step: self.quant[0],
+                offset: self.quant[1],
+            });
+        }
+        e.validate().map_err(|err| err.to_string())?;
+        Ok(e)
+    }
 }
 
 impl PlantFmu {
@@ -48,6 +178,23 @@ impl PlantFmu {
 
     /// Paper 003's polynomial borders and continuous block, as selected by `border` and `linear`.
     fn extensions(&self) -> Result<PlantExtensions, String> {
+        if self.border != 0 {
+            let b = &self.bench;
+            let straight_only = [
+                ("c1_rate, c2_rate (gap drift)", b.c_rate != [0.0; 2]),
+                (
+                    "curve_up2 .. curve_down3 (curved borders)",
+                    b.curve != [0.0; 4],
+                ),
+                ("friction = 2 (contact friction)", b.friction == 2),
+            ];
+            if let Some((what, _)) = straight_only.iter().find(|(_, on)| *on) {
+                return Err(format!(
+                    "parameters {what} act on the straight borders m1, m2, c1, c2 and cannot be used with \
+                     border = 1 (polynomial borders)"
+                ));
+            }
+        }
         let borders = match self.border {
             0 => None,
             _ => Some(PolyBacklashParams::new(&self.fa, &self.fd).map_err(|e| e.to_string())?),
@@ -68,6 +215,7 @@ impl PlantFmu {
         Ok(PlantExtensions {
             borders,
             continuous,
+            effects: self.bench.effects(self.ts)?,
         })
     }
 
@@ -87,6 +235,7 @@ impl PlantFmu {
                 .unwrap_or(PlantOutput {
                     x: 0.0,
                     w: 0.0,
+                    f: 0.0,
                     y: 0.0,
                     mode: crate::plant::Mode::Held,
                 }),
@@ -122,6 +271,7 @@ impl Model for PlantFmu {
             linear: 0,
             num: [0.0; 4],
             den: [0.0; 5],
+            bench: Bench::OFF,
             u: 0.0,
             plant: None,
         }
@@ -129,6 +279,7 @@ impl Model for PlantFmu {
 
     fn get(&self, var: Var) -> Value {
         let p = &self.params;
+        let b = &self.bench;
         let r = Value::Real;
         match var {
             Var::Ts => r(self.ts),
@@ -173,6 +324,26 @@ impl Model for PlantFmu {
             Var::Den2 => r(self.den[2]),
             Var::Den3 => r(self.den[3]),
             Var::Den4 => r(self.den[4]),
+            Var::F => r(self.output().f),
+            Var::C1Rate => r(b.c_rate[0]),
+            Var::C2Rate => r(b.c_rate[1]),
+            Var::CurveUp2 => r(b.curve[0]),
+            Var::CurveUp3 => r(b.curve[1]),
+            Var::CurveDown2 => r(b.curve[2]),
+            Var::CurveDown3 => r(b.curve[3]),
+            Var::Friction => Value::Integer(b.friction),
+            Var::KE => r(b.k_e),
+            Var::FPlus => r(b.f_plus),
+            Var::FMinus => r(b.f_minus),
+            Var::DistAmplitude => r(b.dist[0]),
+            Var::DistOmega => r(b.dist[1]),
+            Var::DistPhase => r(b.dist[2]),
+            Var::NoisePhi => r(b.noise_phi),
+            Var::Saturation => Value::Integer(b.saturation),
+            Var::SatLo => r(b.sat[0]),
+            Var::SatHi => r(b.sat[1]),
+            Var::QuantStep => r(b.quant[0]),
+            Var::QuantOffset => r(b.quant[1]),
         }
     }
 
@@ -230,8 +401,27 @@ impl Model for PlantFmu {
             Var::Den2 => self.den[2] = x,
             Var::Den3 => self.den[3] = x,
             Var::Den4 => self.den[4] = x,
+            Var::C1Rate => self.bench.c_rate[0] = x,
+            Var::C2Rate => self.bench.c_rate[1] = x,
+            Var::CurveUp2 => self.bench.curve[0] = x,
+            Var::CurveUp3 => self.bench.curve[1] = x,
+            Var::CurveDown2 => self.bench.curve[2] = x,
+            Var::CurveDown3 => self.bench.curve[3] = x,
+            Var::Friction => self.bench.friction = value.as_integer(),
+            Var::KE => self.bench.k_e = x,
+            Var::FPlus => self.bench.f_plus = x,
+            Var::FMinus => self.bench.f_minus = x,
+            Var::DistAmplitude => self.bench.dist[0] = x,
+            Var::DistOmega => self.bench.dist[1] = x,
+            Var::DistPhase => self.bench.dist[2] = x,
+            Var::NoisePhi => self.bench.noise_phi = x,
+            Var::Saturation => self.bench.saturation = value.as_integer(),
+            Var::SatLo => self.bench.sat[0] = x,
+            Var::SatHi => self.bench.sat[1] = x,
+            Var::QuantStep => self.bench.quant[0] = x,
+            Var::QuantOffset => self.bench.quant[1] = x,
             // Outputs: the layer refuses to set them before calling here.
-            Var::Y | Var::W | Var::X => {}
+            Var::Y | Var::W | Var::X | Var::F => {}
         }
     }
 

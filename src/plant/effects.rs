@@ -29,16 +29,14 @@
 //! The delay and the orders of the linear block are plant parameters already: a test bench with an
 //! "undeclared extra delay" is a plant whose `delay` is larger than the one given to the estimator.
 //!
-//! With every effect off, [`simulate_with_effects`] reproduces `Plant::simulate` bit for bit (tested), except
-//! that the noise generator is seeded with the `seed` argument rather than `params.noise_seed`.
+//! [`Plant`](super::Plant) runs the effects when `PlantExtensions::effects` enables any (and the FMU
+//! BacklashPlant exposes them as parameters); with every effect off the plant takes its plain path, and
+//! effects switched on with neutral values (zero drift, straight curves) reproduce it bit for bit (tested).
 
-use rand_chacha::ChaCha8Rng;
-use rand_core::SeedableRng;
-use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
 use super::backlash::{BacklashParams, Mode};
-use super::linear::Arx;
+use super::poly::PolyBacklash;
 use super::{ParamError, PlantParams, check_finite, check_non_negative, check_positive};
 
 /// The gaps change linearly over the record (wear): `c1(k) = c1 + c1_rate k`, `c2(k) = c2 + c2_rate k`,
@@ -380,11 +378,28 @@ pub struct EffectsState {
 
 impl EffectsState {
     /// The outputs at sample `k = self.k` for the linear block output `x` and a standard normal draw `z`;
-    /// then moves on to k + 1.
-    pub fn step(&mut self, p: &PlantParams, e: &Effects, x: f64, z: f64) -> EffectsOutput {
+    /// then moves on to k + 1. With `poly` (paper 003's polynomial borders, which keep their own state) the
+    /// backlash output comes from it; gap drift, curved borders and contact friction need the straight
+    /// borders (`PlantExtensions::validate` refuses the combination) and are ignored with `poly`.
+    pub fn step(
+        &mut self,
+        p: &PlantParams,
+        e: &Effects,
+        poly: Option<&mut PolyBacklash>,
+        x: f64,
+        z: f64,
+    ) -> EffectsOutput {
         let k = self.k;
-        let (w, mode, f) = match &e.friction {
-            Some(fr) if fr.form == FrictionForm::Contact => {
+        let (w, mode, f) = match (&e.friction, poly) {
+            (_, Some(poly)) => {
+                let w = poly.step(x);
+                let f = match &e.friction {
+                    Some(fr) => friction_step(fr, self.f, w - self.w),
+                    None => w,
+                };
+                (w, poly.mode(), f)
+            }
+            (Some(fr), None) if fr.form == FrictionForm::Contact => {
                 let bl = e
                     .gap_drift
                     .as_ref()
@@ -392,7 +407,7 @@ impl EffectsState {
                 let (f, z, mode) = contact_step(fr, &bl, x, self.w);
                 (z, mode, f)
             }
-            fr => {
+            (fr, None) => {
                 let (w, mode) = backlash_step(
                     &p.backlash,
                     e.gap_drift.as_ref(),
@@ -416,37 +431,45 @@ impl EffectsState {
 }
 
 /// The plant with effects over the input sequence `u` (output k is the state before it reads u(k), as in
-/// `Plant::simulate`). The measurement noise (std `params.noise_std`) comes from ChaCha8 seeded with `seed`;
-/// one standard normal draw per sample, only when `noise_std > 0`.
+/// `Plant::simulate`): [`Plant`](super::Plant) with these effects, its noise (std `params.noise_std`) drawn
+/// from ChaCha8 seeded with `seed` instead of `params.noise_seed`.
 pub fn simulate_with_effects(
     params: &PlantParams,
     effects: &Effects,
     u: &[f64],
     seed: u64,
 ) -> Result<Vec<EffectsOutput>, ParamError> {
-    params.validate()?;
-    effects.validate()?;
-    let mut arx = Arx::new(params.arx);
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut st = EffectsState::default();
-    let mut out = Vec::with_capacity(u.len());
-    for &uk in u {
-        let x = arx.peek();
-        let z = if params.noise_std > 0.0 {
-            StandardNormal.sample(&mut rng)
-        } else {
-            0.0
-        };
-        out.push(st.step(params, effects, x, z));
-        arx.push(uk, x);
-    }
-    Ok(out)
+    let ext = super::PlantExtensions {
+        effects: *effects,
+        ..Default::default()
+    };
+    let params = PlantParams {
+        noise_seed: seed,
+        ..*params
+    };
+    let mut plant = super::Plant::with_extensions(params, &ext)?;
+    Ok(u.iter()
+        .map(|&uk| {
+            let o = plant.output();
+            plant.advance(uk);
+            EffectsOutput {
+                x: o.x,
+                w: o.w,
+                f: o.f,
+                y: o.y,
+                mode: o.mode,
+            }
+        })
+        .collect())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::plant::Plant;
+    use rand_chacha::ChaCha8Rng;
+    use rand_core::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
 
     fn input(n: usize) -> Vec<f64> {
         (0..n)
@@ -470,7 +493,10 @@ mod tests {
 
     #[test]
     fn straight_curve_and_zero_drift_change_nothing() {
-        let p = PlantParams::PAPER;
+        // The effects path (taken when any effect is set) with neutral effects against the plant's plain
+        // path, noise included: same draws in the same order.
+        let mut p = PlantParams::PAPER;
+        p.noise_std = 0.05;
         let u = input(500);
         let e = Effects {
             gap_drift: Some(GapDrift {

@@ -14,6 +14,7 @@ pub mod poly;
 
 pub use backlash::{BacklashParams, Mode};
 pub use continuous::{ContinuousLinear, TransferFunction};
+pub use effects::{Effects, EffectsState};
 pub use linear::{Arx, ArxParams, MAX_DELAY, MAX_ORDER};
 pub use poly::{PolyBacklash, PolyBacklashParams};
 
@@ -136,9 +137,12 @@ impl PlantParams {
 pub struct PlantOutput {
     /// Linear block output.
     pub x: f64,
-    /// Backlash output (noise-free).
+    /// Backlash output (noise-free); with contact friction ([`effects::FrictionForm::Contact`]) the slider
+    /// position, the output of the play operator the slider follows.
     pub w: f64,
-    /// Measured output: w plus noise.
+    /// Noise-free output after the friction element of the test-bench effects (= w without friction).
+    pub f: f64,
+    /// Measured output: f plus noise and the enabled sensor effects (without effects: w plus noise).
     pub y: f64,
     /// Regime of the backlash at this sample.
     pub mode: Mode,
@@ -155,12 +159,36 @@ pub struct PlantExtensions {
     /// ARX block when set. Strictly proper so that x(k) does not depend on u(k): the plant keeps no direct
     /// feedthrough, as the FMU's ModelStructure declares.
     pub continuous: Option<(TransferFunction, f64)>,
+    /// The test-bench effects of the diagnosis catalogue ([`effects`]); all off by default. Gap drift,
+    /// curved borders and contact friction act on the straight borders m1, m2, c1, c2 and are refused with
+    /// polynomial borders; series friction and the sensor effects combine with anything.
+    #[serde(default)]
+    pub effects: Effects,
 }
 
 impl PlantExtensions {
     pub fn validate(&self) -> Result<(), ParamError> {
         if let Some(b) = &self.borders {
             b.validate()?;
+        }
+        self.effects.validate()?;
+        if self.borders.is_some() {
+            let e = &self.effects;
+            let contact = e
+                .friction
+                .is_some_and(|f| f.form == effects::FrictionForm::Contact);
+            let straight_only = [
+                ("gap drift", e.gap_drift.is_some()),
+                ("curved borders", e.curved_borders.is_some()),
+                ("contact friction", contact),
+            ];
+            if let Some((name, _)) = straight_only.iter().find(|(_, on)| *on) {
+                return Err(ParamError::new(
+                    *name,
+                    1.0,
+                    "acts on the straight borders m1, m2, c1, c2 and cannot be combined with polynomial borders",
+                ));
+            }
         }
         if let Some((tf, ts)) = &self.continuous {
             tf.validate()?;
@@ -207,6 +235,8 @@ pub struct Plant {
     params: PlantParams,
     linear: Linear,
     poly: Option<PolyBacklash>,
+    /// The test-bench effects; `None` when all are off, so that the plain plant runs its own short path.
+    effects: Option<(Effects, EffectsState)>,
     rng: ChaCha8Rng,
     out: PlantOutput,
     k: u64,
@@ -227,14 +257,18 @@ impl Plant {
             None => Linear::Arx(Arx::new(params.arx)),
         };
         let poly = ext.borders.map(PolyBacklash::new).transpose()?;
+        let effects =
+            (ext.effects != Effects::default()).then(|| (ext.effects, EffectsState::default()));
         let mut p = Self {
             params,
             linear,
             poly,
+            effects,
             rng: ChaCha8Rng::seed_from_u64(params.noise_seed),
             out: PlantOutput {
                 x: 0.0,
                 w: 0.0,
+                f: 0.0,
                 y: 0.0,
                 mode: Mode::Held,
             },
@@ -278,8 +312,17 @@ impl Plant {
         if let Some(p) = &self.poly {
             p.validate().map_err(|e| e.to_string())?;
         }
+        if let Some((e, st)) = &self.effects {
+            e.validate().map_err(|e| e.to_string())?;
+            if ![st.w, st.f, st.n].iter().all(|v| v.is_finite()) {
+                return Err("the effects' state is not finite".into());
+            }
+            if st.k != self.k + 1 {
+                return Err("the effects' sample index differs from the plant's".into());
+            }
+        }
         let o = &self.out;
-        if ![o.x, o.w, o.y].iter().all(|v| v.is_finite()) {
+        if ![o.x, o.w, o.f, o.y].iter().all(|v| v.is_finite()) {
             return Err("the plant's outputs are not finite".into());
         }
         Ok(())
@@ -297,6 +340,23 @@ impl Plant {
 
     fn compute(&mut self, w_prev: f64) -> PlantOutput {
         let x = self.linear.peek();
+        if let Some((e, st)) = &mut self.effects {
+            // One standard normal draw per sample when there is noise, as on the plain path, so that the same
+            // seed gives the same noise sequence with and without effects.
+            let z = if self.params.noise_std > 0.0 {
+                StandardNormal.sample(&mut self.rng)
+            } else {
+                0.0
+            };
+            let o = st.step(&self.params, e, self.poly.as_mut(), x, z);
+            return PlantOutput {
+                x,
+                w: o.w,
+                f: o.f,
+                y: o.y,
+                mode: o.mode,
+            };
+        }
         let (w, mode) = match &mut self.poly {
             Some(poly) => {
                 let w = poly.step(x);
@@ -313,6 +373,7 @@ impl Plant {
         PlantOutput {
             x,
             w,
+            f: w,
             y: w + noise,
             mode,
         }
@@ -396,6 +457,7 @@ mod tests {
         let ext = PlantExtensions {
             borders: Some(PolyBacklashParams::from_straight(&bl)),
             continuous: Some((TransferFunction::new(&[b], &[1.0, a]).unwrap(), ts)),
+            effects: Effects::default(),
         };
         // |x| stays below 4, the crossing point of the paper's straight borders: beyond it paper 000's rule
         // and paper 003's differ (plant::poly documents why).
@@ -418,9 +480,116 @@ mod tests {
                 TransferFunction::new(&[1.0, 0.0], &[1.0, 1.0]).unwrap(),
                 0.1,
             )),
+            effects: Effects::default(),
         };
         let e = Plant::with_extensions(PlantParams::PAPER, &ext).unwrap_err();
         assert!(e.reason.contains("strictly proper"), "{e}");
+    }
+
+    #[test]
+    fn effects_combine_with_polynomial_borders_where_they_can() {
+        use effects::{Friction, FrictionForm, GapDrift, Quantization};
+        let bl = PlantParams::PAPER.backlash;
+        let series = Friction {
+            k_e: 1.0,
+            f_plus: 0.4,
+            f_minus: 0.4,
+            form: FrictionForm::Series,
+        };
+        let mut ext = PlantExtensions {
+            borders: Some(PolyBacklashParams::from_straight(&bl)),
+            continuous: None,
+            effects: Effects {
+                friction: Some(series),
+                quantization: Some(Quantization {
+                    step: 0.1,
+                    offset: 0.0,
+                }),
+                ..Effects::default()
+            },
+        };
+        // Straight polynomial borders with series friction and a quantized sensor: w is the plain plant's
+        // (below the borders' crossing point), f the friction element's output, y its quantized value.
+        let u: Vec<f64> = (0..400).map(|k| 4.0 * (0.07 * k as f64).sin()).collect();
+        let want = Plant::simulate(PlantParams::PAPER, &u).unwrap();
+        let mut plant = Plant::with_extensions(PlantParams::PAPER, &ext).unwrap();
+        let (mut f_prev, mut w_prev, mut slipping) = (0.0, 0.0, 0);
+        for (k, w) in want.iter().enumerate() {
+            let o = plant.output();
+            assert!((o.w - w.w).abs() < 1e-12, "w at {k}");
+            let f = (f_prev + (o.w - w_prev)).clamp(-0.4, 0.4);
+            assert!((o.f - f).abs() < 1e-12, "f at {k}");
+            assert!(
+                ((o.y / 0.1).round() - o.y / 0.1).abs() < 1e-9 && (o.y - o.f).abs() <= 0.05 + 1e-12
+            );
+            slipping += usize::from(o.f.abs() == 0.4);
+            (f_prev, w_prev) = (o.f, o.w);
+            plant.advance(u[k]);
+        }
+        assert!(
+            slipping > 20,
+            "the friction element slips ({slipping} samples)"
+        );
+        // Gap drift needs the straight borders.
+        ext.effects.gap_drift = Some(GapDrift {
+            c1_rate: 1e-3,
+            c2_rate: 0.0,
+        });
+        let e = Plant::with_extensions(PlantParams::PAPER, &ext).unwrap_err();
+        assert_eq!(e.name, "gap drift");
+        assert!(e.reason.contains("polynomial borders"), "{e}");
+    }
+
+    #[test]
+    fn wear_set_while_running_adds_to_the_gap_drift() {
+        use effects::GapDrift;
+        let ext = PlantExtensions {
+            effects: Effects {
+                gap_drift: Some(GapDrift {
+                    c1_rate: 0.01,
+                    c2_rate: 0.0,
+                }),
+                ..Effects::default()
+            },
+            ..PlantExtensions::default()
+        };
+        let mut plant = Plant::with_extensions(PlantParams::PAPER, &ext).unwrap();
+        for _ in 0..100 {
+            plant.advance(0.0);
+        }
+        let mut bl = PlantParams::PAPER.backlash;
+        bl.c1 = 1.0;
+        plant.set_backlash(bl).unwrap();
+        // At sample 101 the gap is 1.0 + 0.01 * 101: engaging up from w = 0 needs x > 2.01.
+        plant.advance(2.0 / 0.8);
+        assert_eq!(plant.output().w, 0.0);
+        plant.advance(0.0);
+        plant.advance(4.0 / 0.8);
+        let o = plant.output();
+        let c1 = 1.0 + 0.01 * 103.0;
+        assert!((o.w - (o.x - c1)).abs() < 1e-12, "{o:?}");
+        assert!(plant.check().is_ok());
+    }
+
+    #[test]
+    fn a_forged_effects_state_is_refused() {
+        let ext = PlantExtensions {
+            effects: Effects {
+                coloured_noise: Some(effects::ColouredNoise { phi: 0.5 }),
+                ..Effects::default()
+            },
+            ..PlantExtensions::default()
+        };
+        let plant = Plant::with_extensions(PlantParams::PAPER, &ext).unwrap();
+        assert!(plant.check().is_ok());
+        let mut j = serde_json::to_value(&plant).unwrap();
+        j["effects"][1]["k"] = serde_json::json!(7);
+        let forged: Plant = serde_json::from_value(j).unwrap();
+        assert!(forged.check().unwrap_err().contains("sample index"));
+        let mut j = serde_json::to_value(&plant).unwrap();
+        j["effects"][0]["coloured_noise"]["phi"] = serde_json::json!(1.5);
+        let forged: Plant = serde_json::from_value(j).unwrap();
+        assert!(forged.check().unwrap_err().contains("phi"));
     }
 
     #[test]
