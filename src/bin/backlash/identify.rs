@@ -52,7 +52,8 @@ pub struct MrgiaArgs {
     /// Write the estimates after every sample as CSV (time,a1..,b0..,m2,c1,c2,y_hat,e,updating).
     #[arg(long)]
     pub trace: Option<PathBuf>,
-    /// Write a PNG of the estimates against the sample index.
+    /// Write a PNG of the estimates against the sample index (up to 4096 samples all are drawn; beyond, every
+    /// s-th, s a power of two, and the last).
     #[arg(long)]
     pub plot: Option<PathBuf>,
 }
