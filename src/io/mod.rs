@@ -1,12 +1,27 @@
 //! Validated CSV reading and atomic writing.
 //!
 //! The format is the project's contract: comma-separated, one header line naming the columns, numbers
-//! elsewhere. Every error names the file, the line (1-based, the header is line 1) and the column, so that
-//! a user can open the file at the right place. A `time` column, when required, must increase strictly.
+//! elsewhere. Every error names the file, the line (1-based, the header is line 1) and, where the fault has
+//! one, the column, so that a user can open the file at the right place. A `time` column, when required, must
+//! increase strictly.
+//!
+//! [`RowReader`] checks a file row by row in memory independent of its length (one line buffer of at most
+//! [`MAX_LINE_BYTES`]); [`Table`] collects the same rows into columns. Both go through the one row checker,
+//! so a file that one accepts the other accepts, with the same numbers and the same messages.
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, Write};
+use std::io::{BufRead, BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
+
+/// The longest line accepted, in bytes (line end included): the reader's buffer never grows beyond it, so a
+/// file without line ends cannot exhaust memory.
+pub const MAX_LINE_BYTES: usize = 1 << 20;
+
+/// Buffer of the file reader behind [`RowReader::open`] and [`Table::read`].
+const READ_BUFFER_BYTES: usize = 1 << 16;
+
+/// Longest excerpt of a cell quoted in a message.
+const QUOTE_CHARS: usize = 40;
 
 /// What went wrong while reading a data file, and where.
 #[derive(Debug, thiserror::Error)]
@@ -27,10 +42,42 @@ pub enum CsvError {
     },
     #[error("{file}: line 1: column '{column}' appears twice in the header")]
     DuplicateColumn { file: PathBuf, column: String },
-    #[error("{file}: line {line}: {found} fields, the header has {expected}")]
-    Ragged {
+    #[error("{file}: line {line}, byte {byte}: not valid UTF-8")]
+    InvalidUtf8 {
         file: PathBuf,
         line: usize,
+        /// 1-based byte offset of the first invalid byte within the line.
+        byte: usize,
+    },
+    #[error(
+        "{file}: line {line}: longer than {limit} bytes (a line end is missing, or this is not a CSV file)"
+    )]
+    LineTooLong {
+        file: PathBuf,
+        line: usize,
+        limit: usize,
+    },
+    #[error(
+        "{file}: line {line}, column {column} ('{name}'): missing: {found} fields, the header has {expected}"
+    )]
+    MissingField {
+        file: PathBuf,
+        line: usize,
+        /// 1-based number of the first missing column.
+        column: usize,
+        name: String,
+        found: usize,
+        expected: usize,
+    },
+    #[error(
+        "{file}: line {line}, column {column}: extra field '{text}': {found} fields, the header has {expected}"
+    )]
+    ExtraField {
+        file: PathBuf,
+        line: usize,
+        /// 1-based number of the first field beyond the header's columns.
+        column: usize,
+        text: String,
         found: usize,
         expected: usize,
     },
@@ -62,40 +109,35 @@ pub enum CsvError {
     NoRows { file: PathBuf },
 }
 
-/// A numeric table: the required columns, in the order asked for.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Table {
-    names: Vec<String>,
-    columns: Vec<Vec<f64>>,
+/// `text` cut to [`QUOTE_CHARS`] characters for a message.
+fn quote(text: &str) -> String {
+    match text.char_indices().nth(QUOTE_CHARS) {
+        Some((i, _)) => format!("{}...", &text[..i]),
+        None => text.to_string(),
+    }
 }
 
-impl Table {
-    /// Read `path`, keeping the `required` columns (others are ignored but must still be well-formed rows).
-    /// A column named `time` or `t`, if required, must increase strictly.
-    pub fn read(path: &Path, required: &[&str]) -> Result<Table, CsvError> {
-        let file = path.to_path_buf();
-        let f = File::open(path).map_err(|source| CsvError::Io {
-            file: file.clone(),
-            source,
-        })?;
-        Self::parse(BufReader::new(f), &file, required)
-    }
+/// The checks of one data row against the header: the one implementation behind [`RowReader`] and [`Table`].
+#[derive(Debug, Default)]
+struct RowChecker {
+    file: PathBuf,
+    header: Vec<String>,
+    /// Header position of each required column.
+    idx: Vec<usize>,
+    /// Whether each required column is a time (`time` or `t`) that must increase strictly.
+    is_time: Vec<bool>,
+    /// The previous row's values (meaningful once a row was accepted).
+    prev: Vec<f64>,
+    has_prev: bool,
+    /// Byte ranges of the fields of the current line (reused).
+    spans: Vec<(usize, usize)>,
+}
 
-    /// Parse from any reader; `file` is only used in messages.
-    pub fn parse(reader: impl BufRead, file: &Path, required: &[&str]) -> Result<Table, CsvError> {
-        let file = file.to_path_buf();
-        let io = |source| CsvError::Io {
-            file: file.clone(),
-            source,
-        };
-        let mut lines = reader.lines();
-        let header = match lines.next() {
-            None => return Err(CsvError::Empty { file }),
-            Some(l) => l.map_err(io)?,
-        };
+impl RowChecker {
+    /// Check the header line (already decoded, line end removed).
+    fn new(file: PathBuf, header: &str, required: &[&str]) -> Result<RowChecker, CsvError> {
         let header: Vec<String> = header
             .trim_start_matches('\u{feff}')
-            .trim_end_matches('\r')
             .split(',')
             .map(|s| s.trim().to_string())
             .collect();
@@ -123,57 +165,261 @@ impl Table {
                 }
             }
         }
-        let mut columns: Vec<Vec<f64>> = vec![Vec::new(); required.len()];
-        let is_time: Vec<bool> = required.iter().map(|n| *n == "time" || *n == "t").collect();
-        for (n, line) in lines.enumerate() {
-            let line_no = n + 2;
-            let line = line.map_err(io)?;
-            let line = line.trim_end_matches('\r');
+        Ok(RowChecker {
+            file,
+            spans: Vec::with_capacity(header.len() + 1),
+            header,
+            idx,
+            is_time: required.iter().map(|n| *n == "time" || *n == "t").collect(),
+            prev: vec![0.0; required.len()],
+            has_prev: false,
+        })
+    }
+
+    /// Check data line `line_no` (non-blank, line end removed) and put the required columns into `row`.
+    fn check(&mut self, line_no: usize, line: &str, row: &mut [f64]) -> Result<(), CsvError> {
+        self.spans.clear();
+        let mut start = 0;
+        for field in line.split(',') {
+            self.spans.push((start, start + field.len()));
+            start += field.len() + 1;
+        }
+        let (found, expected) = (self.spans.len(), self.header.len());
+        if found < expected {
+            return Err(CsvError::MissingField {
+                file: self.file.clone(),
+                line: line_no,
+                column: found + 1,
+                name: self.header[found].clone(),
+                found,
+                expected,
+            });
+        }
+        if found > expected {
+            let (a, b) = self.spans[expected];
+            return Err(CsvError::ExtraField {
+                file: self.file.clone(),
+                line: line_no,
+                column: expected + 1,
+                text: quote(&line[a..b]),
+                found,
+                expected,
+            });
+        }
+        for (c, &i) in self.idx.iter().enumerate() {
+            let (a, b) = self.spans[i];
+            let text = line[a..b].trim();
+            let v: f64 = text.parse().map_err(|_| CsvError::NotANumber {
+                file: self.file.clone(),
+                line: line_no,
+                column: self.header[i].clone(),
+                text: quote(text),
+            })?;
+            if !v.is_finite() {
+                return Err(CsvError::NotFinite {
+                    file: self.file.clone(),
+                    line: line_no,
+                    column: self.header[i].clone(),
+                    value: v,
+                });
+            }
+            if self.is_time[c] && self.has_prev && v <= self.prev[c] {
+                return Err(CsvError::NonIncreasingTime {
+                    file: self.file.clone(),
+                    line: line_no,
+                    column: self.header[i].clone(),
+                    value: v,
+                    previous: self.prev[c],
+                });
+            }
+            row[c] = v;
+        }
+        self.prev.copy_from_slice(row);
+        self.has_prev = true;
+        Ok(())
+    }
+}
+
+/// A data file read and checked one row at a time, in memory independent of the file's length.
+///
+/// ```no_run
+/// # use backlash::io::RowReader;
+/// let mut rows = RowReader::open("data.csv".as_ref(), &["time", "u", "y"])?;
+/// while let Some(row) = rows.next_row()? {
+///     let (t, u, y) = (row[0], row[1], row[2]);
+///     # let _ = (t, u, y);
+/// }
+/// # Ok::<(), backlash::io::CsvError>(())
+/// ```
+#[derive(Debug)]
+pub struct RowReader<R> {
+    reader: R,
+    checker: RowChecker,
+    /// The current line as read (at most [`MAX_LINE_BYTES`]).
+    buf: Vec<u8>,
+    row: Vec<f64>,
+    /// Number of the line read last (1 = the header).
+    line: usize,
+    bytes: u64,
+    rows: u64,
+    done: bool,
+}
+
+impl RowReader<BufReader<File>> {
+    /// Open `path` and check its header; `required` as for [`RowReader::new`].
+    pub fn open(path: &Path, required: &[&str]) -> Result<Self, CsvError> {
+        let f = File::open(path).map_err(|source| CsvError::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        Self::new(
+            BufReader::with_capacity(READ_BUFFER_BYTES, f),
+            path,
+            required,
+        )
+    }
+}
+
+impl<R: BufRead> RowReader<R> {
+    /// Read and check the header. Each row will hold the `required` columns in that order (the header may
+    /// have them in any order, and other columns, which are checked for shape only). A required column named
+    /// `time` or `t` must increase strictly. `file` is only used in messages.
+    pub fn new(reader: R, file: &Path, required: &[&str]) -> Result<Self, CsvError> {
+        let mut r = RowReader {
+            reader,
+            // Replaced by the header's checker below.
+            checker: RowChecker {
+                file: file.to_path_buf(),
+                ..RowChecker::default()
+            },
+            buf: Vec::with_capacity(256),
+            row: vec![0.0; required.len()],
+            line: 0,
+            bytes: 0,
+            rows: 0,
+            done: false,
+        };
+        if !r.read_line()? {
+            return Err(CsvError::Empty {
+                file: file.to_path_buf(),
+            });
+        }
+        let header = decode(&r.buf, file, r.line)?;
+        r.checker = RowChecker::new(file.to_path_buf(), header, required)?;
+        Ok(r)
+    }
+
+    /// The next data row (the required columns, in the order asked for), `None` after the last. Blank lines
+    /// are skipped. A file without any data row is an error ([`CsvError::NoRows`]), reported at its end.
+    pub fn next_row(&mut self) -> Result<Option<&[f64]>, CsvError> {
+        while !self.done {
+            if !self.read_line()? {
+                self.done = true;
+                if self.rows == 0 {
+                    return Err(CsvError::NoRows {
+                        file: self.checker.file.clone(),
+                    });
+                }
+                break;
+            }
+            let line = decode(&self.buf, &self.checker.file, self.line)?;
             if line.trim().is_empty() {
                 continue;
             }
-            let fields: Vec<&str> = line.split(',').collect();
-            if fields.len() != header.len() {
-                return Err(CsvError::Ragged {
-                    file,
-                    line: line_no,
-                    found: fields.len(),
-                    expected: header.len(),
-                });
-            }
-            for (c, &i) in idx.iter().enumerate() {
-                let text = fields[i].trim();
-                let v: f64 = text.parse().map_err(|_| CsvError::NotANumber {
-                    file: file.clone(),
-                    line: line_no,
-                    column: header[i].clone(),
-                    text: text.to_string(),
-                })?;
-                if !v.is_finite() {
-                    return Err(CsvError::NotFinite {
-                        file,
-                        line: line_no,
-                        column: header[i].clone(),
-                        value: v,
-                    });
-                }
-                if is_time[c]
-                    && let Some(&prev) = columns[c].last()
-                    && v <= prev
-                {
-                    return Err(CsvError::NonIncreasingTime {
-                        file,
-                        line: line_no,
-                        column: header[i].clone(),
-                        value: v,
-                        previous: prev,
-                    });
-                }
-                columns[c].push(v);
-            }
+            self.checker.check(self.line, line, &mut self.row)?;
+            self.rows += 1;
+            return Ok(Some(&self.row));
         }
-        if columns.first().is_none_or(|c| c.is_empty()) {
-            return Err(CsvError::NoRows { file });
+        Ok(None)
+    }
+
+    /// The header's column names (trimmed, without a byte-order mark).
+    pub fn header(&self) -> &[String] {
+        &self.checker.header
+    }
+
+    /// Number of the line read last (1-based; the header is line 1).
+    pub fn line(&self) -> usize {
+        self.line
+    }
+
+    /// Bytes consumed so far (for progress reports).
+    pub fn bytes_read(&self) -> u64 {
+        self.bytes
+    }
+
+    /// Data rows returned so far.
+    pub fn rows(&self) -> u64 {
+        self.rows
+    }
+
+    /// Read the next line into `buf` without its line end; false at the end of the input.
+    fn read_line(&mut self) -> Result<bool, CsvError> {
+        self.buf.clear();
+        let limit = MAX_LINE_BYTES as u64;
+        let io = |source| CsvError::Io {
+            file: self.checker.file.clone(),
+            source,
+        };
+        let n = (&mut self.reader)
+            .take(limit)
+            .read_until(b'\n', &mut self.buf)
+            .map_err(io)?;
+        if n == 0 {
+            return Ok(false);
+        }
+        self.line += 1;
+        self.bytes += n as u64;
+        if self.buf.last() == Some(&b'\n') {
+            self.buf.pop();
+        } else if n as u64 == limit && !self.reader.fill_buf().map_err(io)?.is_empty() {
+            return Err(CsvError::LineTooLong {
+                file: self.checker.file.clone(),
+                line: self.line,
+                limit: MAX_LINE_BYTES,
+            });
+        }
+        if self.buf.last() == Some(&b'\r') {
+            self.buf.pop();
+        }
+        Ok(true)
+    }
+}
+
+/// `bytes` as UTF-8, or an error naming the line and the byte.
+fn decode<'a>(bytes: &'a [u8], file: &Path, line: usize) -> Result<&'a str, CsvError> {
+    std::str::from_utf8(bytes).map_err(|e| CsvError::InvalidUtf8 {
+        file: file.to_path_buf(),
+        line,
+        byte: e.valid_up_to() + 1,
+    })
+}
+
+/// A numeric table: the required columns, in the order asked for.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Table {
+    names: Vec<String>,
+    columns: Vec<Vec<f64>>,
+}
+
+impl Table {
+    /// Read `path`, keeping the `required` columns (others are ignored but must still be well-formed rows).
+    /// A column named `time` or `t`, if required, must increase strictly.
+    pub fn read(path: &Path, required: &[&str]) -> Result<Table, CsvError> {
+        Self::collect(RowReader::open(path, required)?, required)
+    }
+
+    /// Parse from any reader; `file` is only used in messages.
+    pub fn parse(reader: impl BufRead, file: &Path, required: &[&str]) -> Result<Table, CsvError> {
+        Self::collect(RowReader::new(reader, file, required)?, required)
+    }
+
+    fn collect<R: BufRead>(mut rows: RowReader<R>, required: &[&str]) -> Result<Table, CsvError> {
+        let mut columns: Vec<Vec<f64>> = vec![Vec::new(); required.len()];
+        while let Some(row) = rows.next_row()? {
+            for (c, v) in columns.iter_mut().zip(row) {
+                c.push(*v);
+            }
         }
         Ok(Table {
             names: required.iter().map(|s| s.to_string()).collect(),
@@ -195,33 +441,83 @@ impl Table {
     }
 }
 
-/// Write a file atomically: the content goes to a temporary file beside the target, which is renamed over
-/// the target only when everything was written. A failed run leaves no half-written result.
+/// A file written atomically: the content goes to a temporary file beside the target, which
+/// [`AtomicFile::commit`] renames over the target once everything was written. Dropped without a commit (an
+/// error on the way), it removes the temporary file: a failed run leaves no half-written result, and an
+/// existing target untouched.
+#[derive(Debug)]
+pub struct AtomicFile {
+    target: PathBuf,
+    tmp: PathBuf,
+    out: Option<BufWriter<File>>,
+}
+
+impl AtomicFile {
+    /// Create the temporary file `.NAME.tmpPID` in the target's folder.
+    pub fn create(path: &Path) -> std::io::Result<AtomicFile> {
+        let dir = path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "out".into());
+        let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+        let f = File::create(&tmp)?;
+        Ok(AtomicFile {
+            target: path.to_path_buf(),
+            tmp,
+            out: Some(BufWriter::with_capacity(READ_BUFFER_BYTES, f)),
+        })
+    }
+
+    /// Flush, sync and rename over the target. On failure the temporary file is removed.
+    pub fn commit(mut self) -> std::io::Result<()> {
+        let out = self.out.take().expect("not yet committed");
+        out.into_inner().map_err(|e| e.into_error())?.sync_all()?;
+        std::fs::rename(&self.tmp, &self.target)?;
+        // Renamed: nothing left for Drop to remove.
+        self.tmp = PathBuf::new();
+        Ok(())
+    }
+
+    fn out(&mut self) -> &mut BufWriter<File> {
+        self.out.as_mut().expect("not yet committed")
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.out().write(buf)
+    }
+    fn write_all(&mut self, buf: &[u8]) -> std::io::Result<()> {
+        self.out().write_all(buf)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.out().flush()
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if !self.tmp.as_os_str().is_empty() {
+            // Close before removing.
+            drop(self.out.take());
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// Write a file atomically (see [`AtomicFile`]): `write` fills it, and the target appears only if `write`
+/// and the rename succeed.
 pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-    let result = (|| {
-        let f = File::create(&tmp)?;
-        let mut w = std::io::BufWriter::new(f);
-        write(&mut w)?;
-        w.flush()?;
-        w.into_inner().map_err(|e| e.into_error())?.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    let mut f = AtomicFile::create(path)?;
+    write(&mut f)?;
+    f.commit()
 }
 
 #[cfg(test)]
@@ -267,8 +563,118 @@ mod tests {
         );
         assert_eq!(
             msg("time,u,y\n0,1,2\n1,2\n"),
-            "data.csv: line 3: 2 fields, the header has 3"
+            "data.csv: line 3, column 3 ('y'): missing: 2 fields, the header has 3"
         );
+        assert_eq!(
+            msg("time,u,y\n0,1,2\n1,2,3,4,5\n"),
+            "data.csv: line 3, column 4: extra field '4': 5 fields, the header has 3"
+        );
+        assert_eq!(
+            msg("time,u,y\n0,1,2,\n"),
+            "data.csv: line 2, column 4: extra field '': 4 fields, the header has 3"
+        );
+        assert_eq!(
+            msg("time,u,y\n\n0\n"),
+            "data.csv: line 3, column 2 ('u'): missing: 1 fields, the header has 3"
+        );
+        // Ragged rows are refused in ignored columns too.
+        assert_eq!(
+            msg("time,u,y,note\n0,1,2\n"),
+            "data.csv: line 2, column 4 ('note'): missing: 3 fields, the header has 4"
+        );
+    }
+
+    #[test]
+    fn invalid_utf8_names_line_and_byte() {
+        let msg = |b: &[u8]| {
+            Table::parse(b, Path::new("data.csv"), &["time", "u", "y"])
+                .unwrap_err()
+                .to_string()
+        };
+        assert_eq!(
+            msg(b"time,u,y\n0,1,2\n1,\xe9,3\n"),
+            "data.csv: line 3, byte 3: not valid UTF-8"
+        );
+        // In the header, and in a column that is otherwise ignored.
+        assert_eq!(
+            msg(b"time,u,\xffy\n0,1,2\n"),
+            "data.csv: line 1, byte 8: not valid UTF-8"
+        );
+        assert_eq!(
+            msg(b"time,u,y,note\n0,1,2,ok\n1,1,2,caf\xc3\n"),
+            "data.csv: line 3, byte 10: not valid UTF-8"
+        );
+    }
+
+    #[test]
+    fn long_cells_are_quoted_shortly_and_long_lines_refused() {
+        let long = "x".repeat(1000);
+        let m = parse(&format!("time,u,y\n0,{long},1\n"))
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            m,
+            format!(
+                "data.csv: line 2, column 'u': '{}...' is not a number",
+                "x".repeat(QUOTE_CHARS)
+            )
+        );
+        // A line of exactly MAX_LINE_BYTES (line end included) is read; one byte more is refused.
+        let pad = |n: usize| format!("0,1,2,{}", " ".repeat(n - 6));
+        let head = "time,u,y,pad\n";
+        let ok = format!("{head}{}\n", pad(MAX_LINE_BYTES - 1));
+        assert_eq!(ok.len() - head.len(), MAX_LINE_BYTES);
+        let t = Table::parse(ok.as_bytes(), Path::new("d.csv"), &["time"]).unwrap();
+        assert_eq!(t.rows(), 1);
+        // The same line at the end of the file without its line end.
+        let ok = format!("{head}{}", pad(MAX_LINE_BYTES));
+        assert!(Table::parse(ok.as_bytes(), Path::new("d.csv"), &["time"]).is_ok());
+        let bad = format!("{head}{}\n1,1,2,x\n", pad(MAX_LINE_BYTES));
+        let e = Table::parse(bad.as_bytes(), Path::new("d.csv"), &["time"]).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "d.csv: line 2: longer than {MAX_LINE_BYTES} bytes (a line end is missing, or this is \
+                 not a CSV file)"
+            )
+        );
+    }
+
+    #[test]
+    fn row_reader_yields_the_rows_of_the_table() {
+        let text = "\u{feff}note, y ,time,u\r\nx,1,0,2\r\n\r\n  \ny,3,0.5,4\nz,-5e-3,7,1e3\n";
+        let t = parse(text).unwrap();
+        let mut r =
+            RowReader::new(text.as_bytes(), Path::new("data.csv"), &["time", "u", "y"]).unwrap();
+        assert_eq!(r.header(), ["note", "y", "time", "u"]);
+        let mut rows = Vec::new();
+        let mut lines = Vec::new();
+        while let Some(row) = r.next_row().unwrap() {
+            rows.push(row.to_vec());
+            lines.push(r.line());
+        }
+        assert_eq!(lines, [2, 5, 6]);
+        assert_eq!(r.rows(), 3);
+        assert_eq!(r.bytes_read(), text.len() as u64);
+        assert!(r.next_row().unwrap().is_none());
+        for (c, name) in ["time", "u", "y"].into_iter().enumerate() {
+            let col: Vec<f64> = rows.iter().map(|row| row[c]).collect();
+            assert_eq!(t.column(name).unwrap(), col.as_slice());
+        }
+        assert_eq!(t.column("y").unwrap(), &[1.0, 3.0, -5e-3]);
+        // The errors are those of the table, after the rows before the fault.
+        let bad = "time,u,y\n0,1,2\n1,2,3\n1,2,3\n";
+        let mut r =
+            RowReader::new(bad.as_bytes(), Path::new("data.csv"), &["time", "u", "y"]).unwrap();
+        assert_eq!(r.next_row().unwrap(), Some(&[0.0, 1.0, 2.0][..]));
+        assert_eq!(r.next_row().unwrap(), Some(&[1.0, 2.0, 3.0][..]));
+        assert_eq!(
+            r.next_row().unwrap_err().to_string(),
+            parse(bad).unwrap_err().to_string()
+        );
+        // Header only: NoRows at the end, as the table.
+        let mut r = RowReader::new(&b"time,u,y\n\n"[..], Path::new("data.csv"), &["time"]).unwrap();
+        assert!(matches!(r.next_row(), Err(CsvError::NoRows { .. })));
     }
 
     #[test]
@@ -285,6 +691,26 @@ mod tests {
         assert!(err.is_err());
         assert_eq!(std::fs::read_to_string(&target).unwrap(), "ok\n");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        // AtomicFile: dropped without a commit, it leaves the target as it was and no temporary file.
+        let mut f = AtomicFile::create(&target).unwrap();
+        f.write_all(b"new\n").unwrap();
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
+        drop(f);
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "ok\n");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        let mut f = AtomicFile::create(&target).unwrap();
+        f.write_all(b"new\n").unwrap();
+        f.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "new\n");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        // A commit that cannot rename (the target is a non-empty folder) removes the temporary file.
+        let sub = dir.join("sub");
+        std::fs::create_dir(&sub).unwrap();
+        std::fs::write(sub.join("keep"), b"x").unwrap();
+        let mut f = AtomicFile::create(&sub).unwrap();
+        f.write_all(b"new\n").unwrap();
+        assert!(f.commit().is_err());
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -1,16 +1,16 @@
 //! `backlash identify mrgia`: the recursive MRGIA estimator of paper 000 on a data file.
 
 use anyhow::{Context, Result};
-use backlash::identify::mrgia::{Mrgia, MrgiaConfig};
-use backlash::io::{Table, write_atomic};
+use backlash::identify::mrgia::{Mrgia, MrgiaConfig, StepResult};
+use backlash::io::{AtomicFile, RowReader};
 use backlash::report::plot::{Series, line_plot};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 use std::io::Write;
 use std::path::PathBuf;
 
-/// Files longer than this show a progress bar (when not in --json mode).
-const PROGRESS_MIN_SAMPLES: usize = 200_000;
+/// Files larger than this (about 200,000 rows) show a progress bar (when not in --json mode).
+const PROGRESS_MIN_BYTES: u64 = 5_000_000;
 
 #[derive(clap::Args)]
 pub struct MrgiaArgs {
@@ -52,7 +52,8 @@ pub struct MrgiaArgs {
     /// Write the estimates after every sample as CSV (time,a1..,b0..,m2,c1,c2,y_hat,e,updating).
     #[arg(long)]
     pub trace: Option<PathBuf>,
-    /// Write a PNG of the estimates against the sample index.
+    /// Write a PNG of the estimates against the sample index (up to 4096 samples all are drawn; beyond, every
+    /// s-th, s a power of two, and the last).
     #[arg(long)]
     pub plot: Option<PathBuf>,
 }
@@ -96,40 +97,135 @@ fn flat(est: &Mrgia) -> Vec<f64> {
         .collect()
 }
 
+/// Points of the trajectory kept for `--plot`: at most this many (plus the last sample) whatever the file's
+/// length, so that memory does not grow with it. Up to this many samples every one is drawn; beyond, every
+/// s-th, s the smallest power of two that fits (an image 1000 pixels wide shows no more).
+pub const PLOT_POINTS: usize = 4096;
+
+/// The estimates at every `stride`-th sample, the stride doubling whenever [`PLOT_POINTS`] are held.
+struct Decimated {
+    width: usize,
+    stride: u64,
+    /// Sample index k (0-based) of each kept point.
+    k: Vec<u64>,
+    /// The estimates of each kept point, `width` values each.
+    values: Vec<f64>,
+}
+
+impl Decimated {
+    fn new(width: usize) -> Self {
+        Decimated {
+            width,
+            stride: 1,
+            k: Vec::with_capacity(PLOT_POINTS),
+            values: Vec::with_capacity((PLOT_POINTS + 1) * width),
+        }
+    }
+
+    /// Whether sample `k` would be kept (so that the caller computes its estimates only then).
+    fn wants(&self, k: u64) -> bool {
+        k.is_multiple_of(self.stride)
+    }
+
+    fn push(&mut self, k: u64, values: &[f64]) {
+        if !self.wants(k) {
+            return;
+        }
+        if self.k.len() == PLOT_POINTS {
+            // Keep the points at multiples of twice the stride: every other one, as k = 0, s, 2s, ...
+            let w = self.width;
+            for i in 0..PLOT_POINTS / 2 {
+                self.k[i] = self.k[2 * i];
+                self.values.copy_within(2 * i * w..(2 * i + 1) * w, i * w);
+            }
+            self.k.truncate(PLOT_POINTS / 2);
+            self.values.truncate(PLOT_POINTS / 2 * w);
+            self.stride *= 2;
+            if !self.wants(k) {
+                return;
+            }
+        }
+        self.k.push(k);
+        self.values.extend_from_slice(values);
+    }
+
+    /// Add the last sample `k` (drawn even when the stride skips it); no push after this.
+    fn finish(&mut self, k: u64, values: &[f64]) {
+        if self.k.last() != Some(&k) {
+            self.k.push(k);
+            self.values.extend_from_slice(values);
+        }
+    }
+
+    /// The series of estimate `i` as (sample number k + 1, value).
+    fn series(&self, i: usize) -> Vec<(f64, f64)> {
+        self.k
+            .iter()
+            .zip(self.values.chunks_exact(self.width))
+            .map(|(&k, v)| ((k + 1) as f64, v[i]))
+            .collect()
+    }
+}
+
+/// The file is read, checked and estimated in one pass, row by row: memory does not depend on its length
+/// (the trace is written as it goes, the plot keeps at most [`PLOT_POINTS`] points).
 pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
     let cfg = args.config()?;
-    let table = Table::read(&args.file, &["time", "u", "y"])?;
-    let (t, u, y) = (
-        table.column("time").unwrap(),
-        table.column("u").unwrap(),
-        table.column("y").unwrap(),
-    );
     let mut est = Mrgia::new(cfg)?;
-    let keep = args.trace.is_some() || args.plot.is_some();
-    let mut history: Vec<(Vec<f64>, f64, f64, bool)> = Vec::new();
-    let bar = (!args.json && u.len() >= PROGRESS_MIN_SAMPLES).then(|| {
-        let b = ProgressBar::new(u.len() as u64);
+    let mut rows = RowReader::open(&args.file, &["time", "u", "y"])?;
+    let labels = names(&cfg);
+    let mut trace = match &args.trace {
+        Some(path) => {
+            let mut f = AtomicFile::create(path)
+                .with_context(|| format!("{}: cannot write the trace", path.display()))?;
+            writeln!(f, "time,{},y_hat,e,updating", labels.join(","))
+                .with_context(|| format!("{}: cannot write the trace", path.display()))?;
+            Some((f, path))
+        }
+        None => None,
+    };
+    let mut plot = args.plot.as_ref().map(|_| Decimated::new(labels.len()));
+    let file_bytes = std::fs::metadata(&args.file).map_or(0, |m| m.len());
+    let bar = (!args.json && file_bytes >= PROGRESS_MIN_BYTES).then(|| {
+        let b = ProgressBar::new(file_bytes);
         b.set_style(
-            ProgressStyle::with_template("{bar:40} {pos}/{len} samples ({per_sec}, eta {eta})")
-                .expect("valid template"),
+            ProgressStyle::with_template(
+                "{bar:40} {bytes}/{total_bytes} ({bytes_per_sec}, eta {eta}) {msg}",
+            )
+            .expect("valid template"),
         );
         b
     });
     let mut updates = 0u64;
-    for k in 0..u.len() {
-        let r = est.update(u[k], y[k]);
+    let mut k = 0u64;
+    while let Some(row) = rows.next_row()? {
+        let (t, u, y) = (row[0], row[1], row[2]);
+        let r = est.update(u, y);
         updates += u64::from(r.updating);
-        if keep {
-            history.push((flat(&est), r.y_hat, r.e, r.updating));
+        if let Some((w, path)) = &mut trace {
+            write_trace_row(w, t, &flat(&est), &r)
+                .with_context(|| format!("{}: cannot write the trace", path.display()))?;
+        }
+        if let Some(p) = &mut plot
+            && p.wants(k)
+        {
+            p.push(k, &flat(&est));
         }
         if let Some(b) = &bar
-            && k % 65536 == 0
+            && k.is_multiple_of(65536)
         {
-            b.set_position(k as u64);
+            b.set_position(rows.bytes_read());
+            b.set_message(format!("{k} samples"));
         }
+        k += 1;
     }
     if let Some(b) = bar {
         b.finish_and_clear();
+    }
+    let samples = rows.rows();
+    if let Some((w, path)) = trace {
+        w.commit()
+            .with_context(|| format!("{}: cannot write the trace", path.display()))?;
     }
     let e = est.estimate();
     let setting = if args.recommended {
@@ -138,40 +234,12 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
         "paper"
     };
 
-    if let Some(path) = &args.trace {
-        let header = names(&cfg).join(",");
-        write_atomic(path, |w: &mut dyn Write| {
-            writeln!(w, "time,{header},y_hat,e,updating")?;
-            for (k, (th, yh, e, up)) in history.iter().enumerate() {
-                let vals: Vec<String> = th.iter().map(|v| format!("{v:?}")).collect();
-                writeln!(
-                    w,
-                    "{:?},{},{yh:?},{e:?},{}",
-                    t[k],
-                    vals.join(","),
-                    u8::from(*up)
-                )?;
-            }
-            Ok(())
-        })
-        .with_context(|| format!("{}: cannot write the trace", path.display()))?;
-    }
-    if let Some(path) = &args.plot {
-        let labels = names(&cfg);
+    if let (Some(path), Some(mut p)) = (&args.plot, plot) {
+        p.finish(samples - 1, &flat(&est));
         let series: Vec<Series> = labels
             .iter()
             .enumerate()
-            .map(|(i, l)| {
-                Series::line(
-                    l,
-                    history
-                        .iter()
-                        .enumerate()
-                        .map(|(k, h)| ((k + 1) as f64, h.0[i]))
-                        .collect(),
-                )
-                .color(i)
-            })
+            .map(|(i, l)| Series::line(l, p.series(i)).color(i))
             .collect();
         line_plot(
             path,
@@ -196,7 +264,7 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
             "m2": e.m2,
             "c1": e.c1,
             "c2": e.c2,
-            "samples": u.len(),
+            "samples": samples,
             "updates": updates,
             "setting": setting,
             "config": cfg,
@@ -205,14 +273,75 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
         println!("{out}");
     } else {
         println!(
-            "MRGIA ({setting} setting) on {}: {} samples, {updates} updates",
+            "MRGIA ({setting} setting) on {}: {samples} samples, {updates} updates",
             args.file.display(),
-            u.len()
         );
-        for (name, v) in names(&cfg).iter().zip(flat(&est)) {
+        for (name, v) in labels.iter().zip(flat(&est)) {
             println!("  {name:>3} = {v:.6}");
         }
         println!("  (m1 = 1 is the normalisation)");
     }
     Ok(())
+}
+
+/// One line of the trace: time, the estimates, y_hat, e, updating (0/1); numbers in Rust's shortest
+/// round-trip form.
+fn write_trace_row(
+    w: &mut impl Write,
+    t: f64,
+    theta: &[f64],
+    r: &StepResult,
+) -> std::io::Result<()> {
+    write!(w, "{t:?}")?;
+    for v in theta {
+        write!(w, ",{v:?}")?;
+    }
+    writeln!(w, ",{:?},{:?},{}", r.y_hat, r.e, u8::from(r.updating))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The kept samples against a direct computation: every one up to PLOT_POINTS; beyond, the multiples of
+    /// the smallest power of two s with ceil(n / s) <= PLOT_POINTS, plus the last sample; values follow k.
+    #[test]
+    fn plot_decimation_keeps_a_bounded_regular_subset() {
+        for n in [
+            1u64,
+            2,
+            4095,
+            4096,
+            4097,
+            8192,
+            8193,
+            10_000,
+            1 << 20,
+            3_000_017,
+        ] {
+            let mut d = Decimated::new(2);
+            for k in 0..n {
+                if d.wants(k) {
+                    d.push(k, &[k as f64, -(k as f64)]);
+                }
+            }
+            d.finish(n - 1, &[(n - 1) as f64, -((n - 1) as f64)]);
+            let mut s = 1u64;
+            while n.div_ceil(s) > PLOT_POINTS as u64 {
+                s *= 2;
+            }
+            let mut want: Vec<u64> = (0..n).step_by(s as usize).collect();
+            if want.last() != Some(&(n - 1)) {
+                want.push(n - 1);
+            }
+            assert_eq!(d.k, want, "n = {n}");
+            assert!(d.k.len() <= PLOT_POINTS + 1);
+            let x: Vec<f64> = want.iter().map(|&k| (k + 1) as f64).collect();
+            let s0 = d.series(0);
+            let s1 = d.series(1);
+            assert_eq!(s0.iter().map(|p| p.0).collect::<Vec<_>>(), x);
+            assert!(s0.iter().all(|&(x, v)| v == x - 1.0));
+            assert!(s1.iter().all(|&(x, v)| v == 1.0 - x));
+        }
+    }
 }
