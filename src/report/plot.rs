@@ -334,11 +334,14 @@ where
         let style = color.stroke_width(2);
         let pieces = runs(&s.points, panel.log_x, panel.log_y);
         let mut first = true;
+        // An unlabelled series gets no legend entry at all (a legend mark alone would show as an empty row).
         let mut label = |anno: &mut SeriesAnno<'_, DB>| {
-            if !s.label.is_empty() {
+            let labelled = !s.label.is_empty();
+            if labelled {
                 any_label = true;
                 anno.label(s.label);
             }
+            labelled
         };
         match s.style {
             SeriesStyle::Points => {
@@ -346,8 +349,9 @@ where
                 let anno = chart
                     .draw_series(pts.into_iter().map(|p| Circle::new(p, 4, color.filled())))
                     .map_err(|x| e(&x))?;
-                label(anno);
-                anno.legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+                if label(anno) {
+                    anno.legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+                }
             }
             SeriesStyle::Line | SeriesStyle::Dashed => {
                 let dashed = s.style == SeriesStyle::Dashed;
@@ -363,8 +367,7 @@ where
                         chart.draw_series(LineSeries::new(piece, style))
                     }
                     .map_err(|x| e(&x))?;
-                    if first {
-                        label(anno);
+                    if std::mem::take(&mut first) && label(anno) {
                         if dashed {
                             anno.legend(move |(x, y)| {
                                 EmptyElement::at((x, y))
@@ -376,7 +379,6 @@ where
                                 PathElement::new(vec![(x, y), (x + 20, y)], style)
                             });
                         }
-                        first = false;
                     }
                 }
             }
