@@ -362,6 +362,9 @@ def main(argv=None):
     ap.add_argument("--estimator-fmu", default=str(fmu_dir / "MrgiaEstimator.fmu"))
     ap.add_argument("--out", help="folder for cosim_study.csv (tidy rows) and cosim_study.png (RMSE against N)")
     ap.add_argument("--json", action="store_true", help="print a JSON summary on stdout, no progress bar")
+    ap.add_argument("--compare-serial", type=int, default=0, metavar="R",
+                    help="also run the grid serially in this process, alternating R times with the distributed "
+                         "run, report both throughputs and check that the tables are identical")
     a = ap.parse_args(argv)
     for f in (a.plant_fmu, a.estimator_fmu):
         if not os.path.exists(f):
@@ -381,8 +384,23 @@ def main(argv=None):
                 cluster = LocalCluster(n_workers=a.workers, threads_per_worker=1, processes=True,
                                        dashboard_address=None)
                 client, mode = Client(cluster), f"LocalCluster, {a.workers} worker processes"
-        rows, seconds = run_study(a.plant_fmu, a.estimator_fmu, a.seeds, ns, snrs, plants, a.first_seed, client,
-                                  quiet=a.json)
+        args = (a.plant_fmu, a.estimator_fmu, a.seeds, ns, snrs, plants, a.first_seed)
+        rows, seconds = run_study(*args, client=client, quiet=a.json)
+        compare = None
+        if a.compare_serial and client is not None:
+            dist, ser, same = [seconds], [], True
+            for i in range(a.compare_serial):
+                r_s, t_s = run_study(*args, quiet=True)
+                ser.append(t_s)
+                same &= to_csv(r_s) == to_csv(rows)
+                if i + 1 < a.compare_serial:
+                    r_d, t_d = run_study(*args, client=client, quiet=True)
+                    dist.append(t_d)
+                    same &= to_csv(r_d) == to_csv(rows)
+            import statistics
+
+            compare = {"distributed_seconds": dist, "serial_seconds": ser,
+                       "speedup": statistics.median(ser) / statistics.median(dist), "identical_tables": same}
     finally:
         if client is not None:
             client.close()
@@ -399,6 +417,8 @@ def main(argv=None):
         files = [str(out / "cosim_study.csv"), str(out / "cosim_study.png")]
     report = {"runs": runs, "mode": mode, "seconds": seconds, "runs_per_second": runs / seconds,
               "samples_per_second": runs * max(ns) / seconds, "files": files}
+    if compare:
+        report["compare_serial"] = compare
     if a.json:
         print(json.dumps(report))
     else:
@@ -412,6 +432,10 @@ def main(argv=None):
                         vals = [s[(plant, snr, method, n, p)][0] for p in param_names(plant)]
                         print(f"  {plant:<16} SNR {snr:<5g} {method:<18} N = {n:<6} RMSE "
                               + " ".join(f"{p}={v:.2e}" for p, v in zip(param_names(plant), vals)))
+        if compare:
+            print(f"serial in this process: {compare['serial_seconds']} s; distributed: "
+                  f"{compare['distributed_seconds']} s; speedup {compare['speedup']:.2f}; "
+                  f"tables {'identical' if compare['identical_tables'] else 'DIFFERENT'}")
         for f in files:
             print(f"wrote {f}")
     return 0
