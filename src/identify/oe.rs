@@ -133,7 +133,10 @@ mod study;
 #[cfg(test)]
 mod tests;
 
-pub use study::{MethodStats, StudyConfig, StudyResult, monte_carlo};
+pub use study::{
+    GridConfig, GridResult, METHODS, MethodStats, PLANT_VARIANTS, PlantVariant, ROWS_HEADER, Row,
+    StudyConfig, StudyError, StudyResult, grid_study, monte_carlo, plant_variant,
+};
 
 use super::mrgia::{self, Estimate, MrgiaConfig};
 use crate::plant::{

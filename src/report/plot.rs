@@ -279,6 +279,20 @@ fn tick(v: f64) -> String {
     }
 }
 
+/// [`tick`], or nothing when `thin` and `v` is not 1, 2, 3 or 5 times a power of ten.
+fn label_of(v: f64, thin: bool) -> String {
+    if thin && v > 0.0 {
+        let m = v / 10f64.powf(v.log10().floor());
+        if ![1.0, 2.0, 3.0, 5.0, 10.0]
+            .iter()
+            .any(|k| (m - k).abs() < 1e-6 * k)
+        {
+            return String::new();
+        }
+    }
+    tick(v)
+}
+
 /// Runs of consecutive drawable points (a non-drawable point ends a run).
 fn runs(points: &[(f64, f64)], log_x: bool, log_y: bool) -> Vec<Vec<(f64, f64)>> {
     let mut out = vec![Vec::new()];
@@ -308,6 +322,26 @@ where
     Y::CoordDescType: Ranged<ValueType = f64> + ValueFormatter<f64>,
 {
     let e = |e: &dyn std::fmt::Display| e.to_string();
+    // A log axis over more than a decade gets a key point at every 1..9 x 10^k, whose labels collide
+    // (e.g. "4000500060007000"): label only 1, 2, 3 and 5 x 10^k there.
+    let spans_decade = |v: Vec<f64>| {
+        let (lo, hi) = v
+            .iter()
+            .filter(|x| shown(**x, true))
+            .fold((f64::INFINITY, 0.0f64), |(lo, hi), &x| {
+                (lo.min(x), hi.max(x))
+            });
+        hi / lo >= 10.0
+    };
+    let points = |i: usize| -> Vec<f64> {
+        panel
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter().map(move |p| if i == 0 { p.0 } else { p.1 }))
+            .collect()
+    };
+    let thin_x = panel.log_x && spans_decade(points(0));
+    let thin_y = panel.log_y && spans_decade(points(1));
     let mut chart = ChartBuilder::on(area)
         .caption(panel.title, ("sans-serif", title_size))
         .margin(12)
@@ -324,8 +358,8 @@ where
         .light_line_style(RGBColor(235, 235, 235))
         .x_labels(10)
         .y_labels(10)
-        .x_label_formatter(&|v| tick(*v))
-        .y_label_formatter(&|v| tick(*v))
+        .x_label_formatter(&|v| label_of(*v, thin_x))
+        .y_label_formatter(&|v| label_of(*v, thin_y))
         .draw()
         .map_err(|x| e(&x))?;
     let mut any_label = false;
@@ -334,11 +368,14 @@ where
         let style = color.stroke_width(2);
         let pieces = runs(&s.points, panel.log_x, panel.log_y);
         let mut first = true;
+        // An unlabelled series gets no legend entry at all (a legend mark alone would show as an empty row).
         let mut label = |anno: &mut SeriesAnno<'_, DB>| {
-            if !s.label.is_empty() {
+            let labelled = !s.label.is_empty();
+            if labelled {
                 any_label = true;
                 anno.label(s.label);
             }
+            labelled
         };
         match s.style {
             SeriesStyle::Points => {
@@ -346,8 +383,9 @@ where
                 let anno = chart
                     .draw_series(pts.into_iter().map(|p| Circle::new(p, 4, color.filled())))
                     .map_err(|x| e(&x))?;
-                label(anno);
-                anno.legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+                if label(anno) {
+                    anno.legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+                }
             }
             SeriesStyle::Line | SeriesStyle::Dashed => {
                 let dashed = s.style == SeriesStyle::Dashed;
@@ -363,8 +401,7 @@ where
                         chart.draw_series(LineSeries::new(piece, style))
                     }
                     .map_err(|x| e(&x))?;
-                    if first {
-                        label(anno);
+                    if std::mem::take(&mut first) && label(anno) {
                         if dashed {
                             anno.legend(move |(x, y)| {
                                 EmptyElement::at((x, y))
@@ -376,7 +413,6 @@ where
                                 PathElement::new(vec![(x, y), (x + 20, y)], style)
                             });
                         }
-                        first = false;
                     }
                 }
             }
@@ -398,6 +434,23 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn thinned_log_labels_keep_1_2_3_5() {
+        let shown: Vec<String> = [
+            300.0, 400.0, 1000.0, 2000.0, 3000.0, 4000.0, 5000.0, 7000.0, 1e4,
+        ]
+        .iter()
+        .map(|&v| label_of(v, true))
+        .collect();
+        assert_eq!(
+            shown,
+            ["300", "", "1000", "2000", "3000", "", "5000", "", "10000"]
+        );
+        assert_eq!(label_of(4000.0, false), "4000");
+        assert_eq!(label_of(0.0004, true), "");
+        assert_eq!(label_of(0.0005, true), "5.00e-4");
+    }
 
     fn tmp(name: &str) -> PathBuf {
         let dir = std::env::temp_dir().join(format!("backlash-plot-{}", std::process::id()));

@@ -5,7 +5,7 @@
 use anyhow::{Context, Result, bail};
 use backlash::identify::mrgia::{Estimate, paper_input};
 use backlash::identify::oe::{
-    self, OeConfig, OeFit, StudyConfig, Uncertainty, crb, estimate_of, fit, param_names, plant_of,
+    self, GridConfig, OeConfig, OeFit, Uncertainty, crb, estimate_of, fit, param_names, plant_of,
     simulate, theta_of,
 };
 use backlash::io::{Table, write_atomic};
@@ -392,19 +392,43 @@ pub fn run_crb(args: &CrbArgs) -> Result<()> {
 
 #[derive(clap::Args)]
 pub struct StudyArgs {
-    /// Number of Monte Carlo runs (seeds FIRST_SEED..FIRST_SEED+SEEDS).
+    /// Number of Monte Carlo runs per (plant, SNR) (seeds FIRST_SEED..FIRST_SEED+SEEDS).
     #[arg(long, default_value_t = 100)]
     pub seeds: u64,
     /// First seed.
     #[arg(long, default_value_t = 0)]
     pub first_seed: u64,
-    /// Record lengths, comma-separated.
+    /// Record lengths, comma-separated (every run is read at each).
     #[arg(long, value_delimiter = ',', default_value = "300,1000,3000,10000")]
     pub ns: Vec<usize>,
-    /// Signal-to-noise ratio std(w) / noise std (the paper's 43).
-    #[arg(long, default_value_t = 43.0)]
-    pub snr: f64,
-    /// Folder for oe_study.png (RMSE against N), oe_study.csv and oe_study.json (created if missing).
+    /// Signal-to-noise ratio std(w) / noise std (the paper's 43); the single-value form of --snrs.
+    #[arg(long, allow_negative_numbers = true, conflicts_with = "snrs")]
+    pub snr: Option<f64>,
+    /// Signal-to-noise ratios, comma-separated (default: 43).
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    pub snrs: Option<Vec<f64>>,
+    /// Plant variants, comma-separated: paper, wide-gaps, symmetric, reversed-slopes, second-order-b
+    /// (`backlash study --list-plants` describes them).
+    #[arg(long, value_delimiter = ',', default_value = "paper")]
+    pub plants: Vec<String>,
+    /// Methods to report, comma-separated: mrgia-paper, mrgia-recommended, oe, crb (default: all; leaving
+    /// out oe and crb skips their computation).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "mrgia-paper,mrgia-recommended,oe,crb"
+    )]
+    pub methods: Vec<String>,
+    /// Worker threads (default: all cores, or RAYON_NUM_THREADS).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Describe the plant variants and exit.
+    #[arg(long)]
+    pub list_plants: bool,
+    /// Folder for the outputs (created if missing): study_runs.csv (one row per plant, SNR, N, seed, method
+    /// and parameter), study_summary.csv and study.json (statistics per plant, SNR, method and N),
+    /// study_<plant>_snr<SNR>.png (RMSE against N with the CRB); with a single plant and SNR also the
+    /// earlier oe_study.png, oe_study.csv and oe_study.json.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Print one JSON object on stdout and nothing else there.
@@ -412,55 +436,100 @@ pub struct StudyArgs {
     pub json: bool,
 }
 
+fn write_text(path: &std::path::Path, text: &str) -> Result<()> {
+    write_atomic(path, |w: &mut dyn Write| w.write_all(text.as_bytes()))
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
 pub fn run_study(args: &StudyArgs) -> Result<()> {
+    if args.list_plants {
+        for v in oe::PLANT_VARIANTS {
+            println!("{:<16} {}", v.name, v.description);
+        }
+        return Ok(());
+    }
     if args.seeds == 0 || args.ns.is_empty() || args.ns.iter().any(|&n| n < 10) {
         bail!("need --seeds >= 1 and every N in --ns >= 10");
     }
-    if !(args.snr.is_finite() && args.snr > 0.0) {
-        bail!("--snr {} must be a finite number > 0", args.snr);
+    let snrs = match (&args.snrs, args.snr) {
+        (Some(v), _) => v.clone(),
+        (None, Some(r)) => vec![r],
+        (None, None) => vec![43.0],
+    };
+    if let Some(r) = snrs.iter().find(|r| !(r.is_finite() && **r > 0.0)) {
+        bail!("--snr {r} must be a finite number > 0");
     }
-    let cfg = StudyConfig {
+    let cfg = GridConfig {
         seeds: args.seeds,
         first_seed: args.first_seed,
         ns: args.ns.clone(),
-        snr: args.snr,
+        snrs,
+        plants: args.plants.clone(),
+        methods: args.methods.clone(),
     };
-    let bar = (!args.json).then(|| {
-        let b = ProgressBar::new(args.seeds);
+    cfg.validate().context("invalid study grid")?;
+    let pool = {
+        let mut b = rayon::ThreadPoolBuilder::new();
+        if let Some(t) = args.threads {
+            if t == 0 {
+                bail!("--threads must be >= 1");
+            }
+            b = b.num_threads(t);
+        }
+        b.build().context("cannot start the worker threads")?
+    };
+    let threads = pool.current_num_threads();
+    let bar = if args.json {
+        ProgressBar::hidden()
+    } else {
+        let b = ProgressBar::new(cfg.runs());
         b.set_style(
             ProgressStyle::with_template("{bar:40} {pos}/{len} runs (eta {eta})")
                 .expect("valid template"),
         );
         b
-    });
+    };
     let started = Instant::now();
-    let r = oe::monte_carlo(&cfg, |d| {
-        if let Some(b) = &bar {
-            b.set_position(d);
-        }
-    });
-    if let Some(b) = bar {
-        b.finish_and_clear();
-    }
+    let r = pool.install(|| oe::grid_study(&cfg, &|| bar.inc(1)))?;
+    bar.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();
+    let single = (r.groups.len() == 1).then(|| &r.groups[0]);
     let mut files = vec![];
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("{}: cannot create", dir.display()))?;
-        let png = dir.join("oe_study.png");
-        r.plot(&png)?;
-        let csv = dir.join("oe_study.csv");
-        let text = r.to_csv();
-        write_atomic(&csv, |w: &mut dyn Write| w.write_all(text.as_bytes()))
-            .with_context(|| format!("{}: cannot write", csv.display()))?;
-        let js = dir.join("oe_study.json");
-        let text = serde_json::to_string_pretty(&r)?;
-        write_atomic(&js, |w: &mut dyn Write| w.write_all(text.as_bytes()))
-            .with_context(|| format!("{}: cannot write", js.display()))?;
-        files = vec![png, csv, js];
+        let runs = dir.join("study_runs.csv");
+        write_text(&runs, &r.rows_csv())?;
+        let summary = dir.join("study_summary.csv");
+        write_text(&summary, &r.summary_csv())?;
+        let js = dir.join("study.json");
+        write_text(&js, &serde_json::to_string_pretty(&r)?)?;
+        files.extend([runs, summary, js]);
+        for g in &r.groups {
+            let png = dir.join(format!("study_{}_snr{}.png", g.plant, g.config.snr));
+            g.plot(&png)?;
+            files.push(png);
+        }
+        if let Some(g) = single {
+            let png = dir.join("oe_study.png");
+            g.plot(&png)?;
+            let csv = dir.join("oe_study.csv");
+            write_text(&csv, &g.to_csv())?;
+            let js = dir.join("oe_study.json");
+            write_text(&js, &serde_json::to_string_pretty(g)?)?;
+            files.extend([png, csv, js]);
+        }
     }
     if args.json {
-        let mut out = serde_json::to_value(&r)?;
+        // With one (plant, SNR) the fields of that study at the top level, as before the grid existed.
+        let mut out = match single {
+            Some(g) => serde_json::to_value(g)?,
+            None => json!({}),
+        };
+        out["grid"] = serde_json::to_value(&r.config)?;
+        out["groups"] = serde_json::to_value(&r.groups)?;
+        out["runs"] = json!(cfg.runs());
+        out["threads"] = json!(threads);
         out["seconds"] = json!(seconds);
         out["files"] = json!(
             files
@@ -472,36 +541,43 @@ pub fn run_study(args: &StudyArgs) -> Result<()> {
         return Ok(());
     }
     println!(
-        "Monte Carlo study of the paper example: {} runs, SNR {}, {:.1} s",
-        args.seeds, args.snr, seconds
+        "Monte Carlo study: {} runs ({} plant(s) x {} SNR(s) x {} seeds) on {threads} thread(s), {:.1} s",
+        cfg.runs(),
+        cfg.plants.len(),
+        cfg.snrs.len(),
+        cfg.seeds,
+        seconds
     );
     let mut ns = args.ns.clone();
     ns.sort_unstable();
     ns.dedup();
-    for n in ns {
-        println!("N = {n}: RMSE per parameter (truth {:?})", r.truth);
-        print!("  {:<18}", "method");
-        for name in &r.names {
-            print!("{name:>11}");
-        }
-        println!("  median max rel");
-        for m in ["mrgia-paper", "mrgia-recommended", "oe", "crb"] {
-            if let Some(s) = r.get(m, n) {
-                print!("  {m:<18}");
-                for v in &s.rmse {
-                    print!("{v:>11.3e}");
+    for g in &r.groups {
+        println!("\nPlant {}, SNR {}:", g.plant, g.config.snr);
+        for &n in &ns {
+            println!("N = {n}: RMSE per parameter (truth {:?})", g.truth);
+            print!("  {:<18}", "method");
+            for name in &g.names {
+                print!("{name:>11}");
+            }
+            println!("  median max rel");
+            for m in oe::METHODS {
+                if let Some(s) = g.get(m, n) {
+                    print!("  {m:<18}");
+                    for v in &s.rmse {
+                        print!("{v:>11.3e}");
+                    }
+                    println!("  {:.3e}", s.median_max_rel);
                 }
-                println!("  {:.3e}", s.median_max_rel);
             }
-        }
-        if let Some(s) = r.get("oe", n)
-            && let Some(c) = &s.coverage
-        {
-            print!("  {:<18}", "oe 95% coverage");
-            for v in c {
-                print!("{v:>11.2}");
+            if let Some(s) = g.get("oe", n)
+                && let Some(c) = &s.coverage
+            {
+                print!("  {:<18}", "oe 95% coverage");
+                for v in c {
+                    print!("{v:>11.2}");
+                }
+                println!("  ({} failed fits)", s.failures);
             }
-            println!("  ({} failed fits)", s.failures);
         }
     }
     for f in files {
