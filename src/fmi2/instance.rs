@@ -412,25 +412,53 @@ impl Instance {
             })
     }
 
-    fn lookup_all(&self, ty: VarType, vrs: &[u32]) -> Result<Vec<usize>, String> {
-        vrs.iter().map(|&vr| self.lookup(ty, vr)).collect()
+    /// The variable indices of `vrs`, all or nothing. On the stack for up to [`Indices::STACK`] references
+    /// (every get/set a master makes per step), so that a step's get/set calls do not allocate.
+    fn lookup_all(&self, ty: VarType, vrs: &[u32]) -> Result<Indices, String> {
+        let mut idx = if vrs.len() <= Indices::STACK {
+            Indices::Stack([0; Indices::STACK], vrs.len())
+        } else {
+            Indices::Heap(vec![0; vrs.len()])
+        };
+        for (slot, &vr) in idx.iter_mut().zip(vrs) {
+            *slot = self.lookup(ty, vr)?;
+        }
+        Ok(idx)
     }
 
-    /// Values of the variables `vrs` of type `ty`, all or nothing.
-    pub fn get(&mut self, ty: VarType, vrs: &[u32]) -> Result<Vec<Value>, String> {
+    /// Values of the variables `vrs` of type `ty`, all or nothing: `out(k, value)` is called for every `k` in
+    /// order only once all references are known and all values are valid. No allocation for up to
+    /// [`Indices::STACK`] references and non-string types.
+    pub fn get_with(
+        &mut self,
+        ty: VarType,
+        vrs: &[u32],
+        mut out: impl FnMut(usize, &Value),
+    ) -> Result<(), String> {
         let idx = self.lookup_all(ty, vrs)?;
-        let values: Vec<Value> = idx.iter().map(|&i| self.slave.get(i)).collect();
         // A diverged model (refused at its step, see check_outputs) must not hand out NaN or infinity as fmi2OK.
-        for (&i, v) in idx.iter().zip(&values) {
-            if let Value::Real(x) = v
-                && !x.is_finite()
-            {
-                return Err(format!(
-                    "'{}' is not finite ({x}): the model diverged",
-                    self.slave.variables()[i].name
-                ));
+        if ty == VarType::Real {
+            for &i in idx.iter() {
+                if let Value::Real(x) = self.slave.get(i)
+                    && !x.is_finite()
+                {
+                    return Err(format!(
+                        "'{}' is not finite ({x}): the model diverged",
+                        self.slave.variables()[i].name
+                    ));
+                }
             }
         }
+        for (k, &i) in idx.iter().enumerate() {
+            out(k, &self.slave.get(i));
+        }
+        Ok(())
+    }
+
+    /// Values of the variables `vrs` of type `ty`, all or nothing (see [`Instance::get_with`]).
+    pub fn get(&mut self, ty: VarType, vrs: &[u32]) -> Result<Vec<Value>, String> {
+        let mut values = Vec::with_capacity(vrs.len());
+        self.get_with(ty, vrs, |_, v| values.push(v.clone()))?;
         Ok(values)
     }
 
@@ -449,9 +477,22 @@ impl Instance {
     /// Set variables: every value is checked before any is applied.
     pub fn set(&mut self, ty: VarType, vrs: &[u32], values: Vec<Value>) -> Result<(), String> {
         debug_assert_eq!(vrs.len(), values.len());
+        self.set_with(ty, vrs, |k| Ok(values[k].clone()))
+    }
+
+    /// Set variables, the `k`-th to `value(k)`: every value is converted and checked before any is applied
+    /// (`value` is called twice per variable: to check, then to apply). No allocation for up to
+    /// [`Indices::STACK`] references and non-string types.
+    pub fn set_with(
+        &mut self,
+        ty: VarType,
+        vrs: &[u32],
+        value: impl Fn(usize) -> Result<Value, String>,
+    ) -> Result<(), String> {
         let idx = self.lookup_all(ty, vrs)?;
         let state = self.layer.state;
-        for (&i, value) in idx.iter().zip(&values) {
+        for (k, &i) in idx.iter().enumerate() {
+            let value = &value(k)?;
             let v = &self.slave.variables()[i];
             match v.causality {
                 Causality::Output => {
@@ -487,8 +528,8 @@ impl Instance {
                 }
             }
         }
-        for (i, value) in idx.into_iter().zip(values) {
-            self.slave.set(i, value);
+        for (k, &i) in idx.iter().enumerate() {
+            self.slave.set(i, value(k)?);
         }
         Ok(())
     }
@@ -608,6 +649,35 @@ pub fn emit_raw(
                 c"%s".as_ptr(),
                 text.as_ptr(),
             );
+        }
+    }
+}
+
+/// Variable indices of one get/set call: on the stack for up to [`Indices::STACK`] of them.
+enum Indices {
+    Stack([usize; Indices::STACK], usize),
+    Heap(Vec<usize>),
+}
+
+impl Indices {
+    const STACK: usize = 32;
+}
+
+impl std::ops::Deref for Indices {
+    type Target = [usize];
+    fn deref(&self) -> &[usize] {
+        match self {
+            Indices::Stack(a, n) => &a[..*n],
+            Indices::Heap(v) => v,
+        }
+    }
+}
+
+impl std::ops::DerefMut for Indices {
+    fn deref_mut(&mut self) -> &mut [usize] {
+        match self {
+            Indices::Stack(a, n) => &mut a[..*n],
+            Indices::Heap(v) => v,
         }
     }
 }
