@@ -8,7 +8,7 @@
 //! `fmi2DoStep`; estimator `fmi2GetReal(a1, a2, b0, m2, c1, c2, y_hat, e)` and `fmi2GetBoolean(updating)`.
 //!
 //! Found with it: the FMI layer allocated twice per get/set call (the index and value vectors), 11 times per
-//! pair step; it now works on stack arrays (src/fmi2/instance.rs, `Indices`).
+//! pair step; it now works on stack arrays (src/fmi2/instance.rs, `STACK_VRS`, `get_with`, `set_with`).
 //!
 //! Run length: `FMU_MEMORY_STEPS`, default 10 million in release builds (the pair costs a few hundred ns per
 //! step, so about 2-4 s; `cargo test --release` is how CI runs the suite) and 1 million in debug builds
