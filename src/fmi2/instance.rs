@@ -523,7 +523,7 @@ impl Instance {
 
     /// Set variables, the `k`-th to `value(k)`: every value is converted and checked before any is applied
     /// (`value` is called twice per variable: to check, then to apply). No allocation for up to
-    /// [`Indices::STACK`] references and non-string types.
+    /// [`STACK_VRS`] references and non-string types.
     pub fn set_with(
         &mut self,
         ty: VarType,
