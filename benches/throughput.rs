@@ -1,7 +1,7 @@
 //! Throughput of the hot paths, as criterion measures them. Ratios, not absolute times, are what the README
 //! quotes: each group has a baseline measured in the same run.
 //!
-//! `cargo bench --bench throughput` (the FMU group needs `cargo build --release` first for target/fmu).
+//! `cargo bench --bench throughput`; the FMU step costs are in `cargo bench --bench fmu`.
 
 use backlash::identify::frequency::{FrequencyOptions, SineRecord, estimate};
 use backlash::identify::mrgia::{Mrgia, MrgiaConfig, paper_input};
@@ -70,15 +70,34 @@ fn plant_and_backlash(c: &mut Criterion) {
     g.finish();
 }
 
+/// MRGIA per sample on the paper example with sensor noise (std 0.05): the gate (42) lets ~69% of the samples
+/// update for both orders. (Noise-free, the over-parameterised na = nb = 4 run gets stuck at the gate (module
+/// docs of `identify::mrgia`) and updates on 0.6% of the samples, which would time the no-update path.) The
+/// plant step is the baseline measured in the same group: the README quotes MRGIA per sample in plant steps.
 fn mrgia(c: &mut Criterion) {
     let u = paper_input(N, 2);
-    let y: Vec<f64> = Plant::simulate(PlantParams::PAPER, &u)
+    let mut params = PlantParams::PAPER;
+    params.noise_std = 0.05;
+    params.noise_seed = 7;
+    let y: Vec<f64> = Plant::simulate(params, &u)
         .unwrap()
         .iter()
         .map(|o| o.y)
         .collect();
     let mut g = c.benchmark_group("mrgia update");
     g.throughput(Throughput::Elements(N as u64));
+    g.bench_function("plant step (baseline)", |b| {
+        b.iter_batched(
+            || Plant::new(PlantParams::PAPER).unwrap(),
+            |mut p| {
+                for &uk in &u {
+                    p.advance(black_box(uk));
+                }
+                p.output().y
+            },
+            BatchSize::SmallInput,
+        )
+    });
     for (label, na, nb) in [("na=2 nb=0 (paper)", 2, 0), ("na=4 nb=4", 4, 4)] {
         g.bench_function(label, |b| {
             b.iter_batched(

@@ -301,10 +301,8 @@ unsafe fn get_values<T>(
         with_instance(c, call, |inst| {
             let vrs = slice(vr, nvr, "vr")?;
             let out = slice_mut(value, nvr, "value")?;
-            let values = inst.get(ty, vrs)?;
-            for (o, v) in out.iter_mut().zip(&values) {
-                *o = convert(v);
-            }
+            // No allocation: the values go straight to the caller's array.
+            inst.get_with(ty, vrs, |k, v| out[k] = convert(v))?;
             Ok(Fmi2Status::Ok)
         })
     }
@@ -323,11 +321,8 @@ unsafe fn set_values<T: Copy>(
         with_instance(c, call, |inst| {
             let vrs = slice(vr, nvr, "vr")?;
             let vals = slice(value, nvr, "value")?;
-            let values = vals
-                .iter()
-                .map(|&v| convert(v))
-                .collect::<Result<Vec<_>, _>>()?;
-            inst.set(ty, vrs, values)?;
+            // No allocation: each value is converted where it is checked and again where it is applied.
+            inst.set_with(ty, vrs, |k| convert(vals[k]))?;
             Ok(Fmi2Status::Ok)
         })
     }

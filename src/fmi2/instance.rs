@@ -247,6 +247,10 @@ pub struct Instance {
     pub slave: Box<dyn Slave>,
     /// Strings handed out by fmi2GetString stay valid until the next call.
     string_buffer: Vec<CString>,
+    /// Value reference -> variable index, per type (see [`VrTable`]).
+    vr_table: VrTable,
+    /// Indices of the Real outputs (checked after every step).
+    real_outputs: Vec<usize>,
 }
 
 // The callbacks hold raw pointers owned by the importer; the standard lets the importer call an instance from
@@ -274,6 +278,14 @@ impl Instance {
                 calls: false,
             },
             layer: LayerState::new(),
+            vr_table: VrTable::new(slave.variables()),
+            real_outputs: slave
+                .variables()
+                .iter()
+                .enumerate()
+                .filter(|(_, v)| v.causality == Causality::Output && v.ty == VarType::Real)
+                .map(|(i, _)| i)
+                .collect(),
             slave,
             string_buffer: Vec::new(),
         }
@@ -399,10 +411,8 @@ impl Instance {
 
     /// Index of the variable with value reference `vr` and type `ty`.
     fn lookup(&self, ty: VarType, vr: u32) -> Result<usize, String> {
-        self.slave
-            .variables()
-            .iter()
-            .position(|v| v.vr == vr && v.ty == ty)
+        self.vr_table
+            .get(self.slave.variables(), ty, vr)
             .ok_or_else(|| {
                 format!(
                     "unknown value reference {vr} for type {} in {}",
@@ -412,17 +422,69 @@ impl Instance {
             })
     }
 
-    fn lookup_all(&self, ty: VarType, vrs: &[u32]) -> Result<Vec<usize>, String> {
-        vrs.iter().map(|&vr| self.lookup(ty, vr)).collect()
+    /// The variable indices of `vrs`, all or nothing, in `stack` when they fit (every get/set a master makes
+    /// per step), else in `heap`, so that a step's get/set calls do not allocate.
+    fn lookup_all<'b>(
+        &self,
+        ty: VarType,
+        vrs: &[u32],
+        stack: &'b mut [usize; STACK_VRS],
+        heap: &'b mut Vec<usize>,
+    ) -> Result<&'b [usize], String> {
+        let idx: &mut [usize] = if vrs.len() <= STACK_VRS {
+            &mut stack[..vrs.len()]
+        } else {
+            heap.resize(vrs.len(), 0);
+            heap
+        };
+        for (slot, &vr) in idx.iter_mut().zip(vrs) {
+            *slot = self.lookup(ty, vr)?;
+        }
+        Ok(idx)
     }
 
-    /// Values of the variables `vrs` of type `ty`, all or nothing.
-    pub fn get(&mut self, ty: VarType, vrs: &[u32]) -> Result<Vec<Value>, String> {
-        let idx = self.lookup_all(ty, vrs)?;
-        let values: Vec<Value> = idx.iter().map(|&i| self.slave.get(i)).collect();
-        // A diverged model (refused at its step, see check_outputs) must not hand out NaN or infinity as fmi2OK.
-        for (&i, v) in idx.iter().zip(&values) {
-            if let Value::Real(x) = v
+    /// Values of the variables `vrs` of type `ty`, all or nothing: `out(k, value)` is called for every `k` in
+    /// order only once all references are known and all values are valid. No allocation for up to
+    /// [`STACK_VRS`] references and non-string types.
+    pub fn get_with(
+        &mut self,
+        ty: VarType,
+        vrs: &[u32],
+        mut out: impl FnMut(usize, &Value),
+    ) -> Result<(), String> {
+        let (mut stack, mut heap) = ([0; STACK_VRS], Vec::new());
+        let idx = self.lookup_all(ty, vrs, &mut stack, &mut heap)?;
+        if ty != VarType::Real || idx.len() > STACK_VRS {
+            if ty == VarType::Real {
+                self.check_finite(idx)?;
+            }
+            for (k, &i) in idx.iter().enumerate() {
+                out(k, &self.slave.get(i));
+            }
+            return Ok(());
+        }
+        // Reals: read once into a stack buffer, check, then hand out.
+        let mut vals = [0.0; STACK_VRS];
+        for (x, &i) in vals.iter_mut().zip(idx) {
+            *x = self.slave.get(i).as_real();
+        }
+        if let Some(k) = vals[..idx.len()].iter().position(|x| !x.is_finite()) {
+            return Err(format!(
+                "'{}' is not finite ({}): the model diverged",
+                self.slave.variables()[idx[k]].name,
+                vals[k]
+            ));
+        }
+        for (k, &x) in vals[..idx.len()].iter().enumerate() {
+            out(k, &Value::Real(x));
+        }
+        Ok(())
+    }
+
+    /// A diverged model (refused at its step, see check_outputs) must not hand out NaN or infinity as fmi2OK.
+    fn check_finite(&self, idx: &[usize]) -> Result<(), String> {
+        for &i in idx {
+            if let Value::Real(x) = self.slave.get(i)
                 && !x.is_finite()
             {
                 return Err(format!(
@@ -431,6 +493,13 @@ impl Instance {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// Values of the variables `vrs` of type `ty`, all or nothing (see [`Instance::get_with`]).
+    pub fn get(&mut self, ty: VarType, vrs: &[u32]) -> Result<Vec<Value>, String> {
+        let mut values = Vec::with_capacity(vrs.len());
+        self.get_with(ty, vrs, |_, v| values.push(v.clone()))?;
         Ok(values)
     }
 
@@ -449,9 +518,23 @@ impl Instance {
     /// Set variables: every value is checked before any is applied.
     pub fn set(&mut self, ty: VarType, vrs: &[u32], values: Vec<Value>) -> Result<(), String> {
         debug_assert_eq!(vrs.len(), values.len());
-        let idx = self.lookup_all(ty, vrs)?;
+        self.set_with(ty, vrs, |k| Ok(values[k].clone()))
+    }
+
+    /// Set variables, the `k`-th to `value(k)`: every value is converted and checked before any is applied
+    /// (`value` is called twice per variable: to check, then to apply). No allocation for up to
+    /// [`STACK_VRS`] references and non-string types.
+    pub fn set_with(
+        &mut self,
+        ty: VarType,
+        vrs: &[u32],
+        value: impl Fn(usize) -> Result<Value, String>,
+    ) -> Result<(), String> {
+        let (mut stack, mut heap) = ([0; STACK_VRS], Vec::new());
+        let idx = self.lookup_all(ty, vrs, &mut stack, &mut heap)?;
         let state = self.layer.state;
-        for (&i, value) in idx.iter().zip(&values) {
+        for (k, &i) in idx.iter().enumerate() {
+            let value = &value(k)?;
             let v = &self.slave.variables()[i];
             match v.causality {
                 Causality::Output => {
@@ -487,8 +570,8 @@ impl Instance {
                 }
             }
         }
-        for (i, value) in idx.into_iter().zip(values) {
-            self.slave.set(i, value);
+        for (k, &i) in idx.iter().enumerate() {
+            self.slave.set(i, value(k)?);
         }
         Ok(())
     }
@@ -554,11 +637,9 @@ impl Instance {
     /// A model that diverged (an unstable linear block, absurd inputs or parameters) must not be reported as
     /// fine: every Real output must be finite.
     fn check_outputs(&self, when: &str) -> Result<(), String> {
-        for (i, v) in self.slave.variables().iter().enumerate() {
-            if v.causality == Causality::Output
-                && v.ty == VarType::Real
-                && !self.slave.get(i).as_real().is_finite()
-            {
+        for &i in &self.real_outputs {
+            if !self.slave.get(i).as_real().is_finite() {
+                let v = &self.slave.variables()[i];
                 return Err(format!(
                     "the model diverged: output '{}' is not finite {when} (is the linear block stable, \
                      are the input and the parameters of a sensible size?)",
@@ -608,6 +689,59 @@ pub fn emit_raw(
                 c"%s".as_ptr(),
                 text.as_ptr(),
             );
+        }
+    }
+}
+
+/// Value references of one get/set call whose indices are looked up on the stack (more use the heap).
+const STACK_VRS: usize = 32;
+
+/// Value reference -> variable index for each of the four types: a dense table when the largest value
+/// reference is small (it is: the model descriptions number their variables below 100), so that a lookup is one
+/// load instead of a scan of the variable list; a scan otherwise.
+struct VrTable {
+    /// `dense[type][vr]` = index + 1, 0 for none. Empty when the references are too sparse.
+    dense: [Vec<u16>; 4],
+}
+
+impl VrTable {
+    /// Largest value reference put in the dense table.
+    const DENSE_MAX: u32 = 4096;
+
+    fn slot(ty: VarType) -> usize {
+        match ty {
+            VarType::Real => 0,
+            VarType::Integer => 1,
+            VarType::Boolean => 2,
+            VarType::String => 3,
+        }
+    }
+
+    fn new(vars: &[VarInfo]) -> Self {
+        let mut dense: [Vec<u16>; 4] = Default::default();
+        let fits =
+            vars.len() < usize::from(u16::MAX) && vars.iter().all(|v| v.vr <= Self::DENSE_MAX);
+        if fits {
+            // The first variable with a given (type, vr) wins, as the scan it replaces.
+            for (i, v) in vars.iter().enumerate().rev() {
+                let t = &mut dense[Self::slot(v.ty)];
+                let at = v.vr as usize;
+                if t.len() <= at {
+                    t.resize(at + 1, 0);
+                }
+                t[at] = (i + 1) as u16;
+            }
+        }
+        Self { dense }
+    }
+
+    fn get(&self, vars: &[VarInfo], ty: VarType, vr: u32) -> Option<usize> {
+        if self.dense.iter().all(Vec::is_empty) {
+            return vars.iter().position(|v| v.vr == vr && v.ty == ty);
+        }
+        match self.dense[Self::slot(ty)].get(vr as usize) {
+            Some(&i) if i > 0 => Some(usize::from(i) - 1),
+            _ => None,
         }
     }
 }

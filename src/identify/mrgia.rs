@@ -118,7 +118,8 @@ pub use study::{
 use crate::plant::{
     MAX_DELAY, MAX_ORDER, ParamError, check_finite, check_non_negative, check_positive,
 };
-use rls::{Core, MAX_N};
+use nalgebra::SVector;
+use rls::{Core, MAX_N, Rls, WithRls};
 use serde::{Deserialize, Serialize};
 
 /// Floor on the estimated lower slope `m2^` where it is used as a slope (eqs. (26), (33)).
@@ -434,86 +435,19 @@ impl Mrgia {
                 ..self.last
             };
         }
-        let cfg = self.cfg;
-        let (na, nb, d) = (cfg.na, cfg.nb, cfg.delay);
-        let n = cfg.n_params();
         self.u_max = self.u_max.max(u.abs());
         self.y_max = self.y_max.max(y.abs());
-
-        let theta = self.core.theta();
-        let (c1, c2) = (theta[n - 2], theta[n - 1]);
-        let m2 = (1.0 + theta[n - 3]).max(M2_FLOOR);
-
-        // (27): the auxiliary linear model with theta(k-1).
-        let mut x = 0.0;
-        for (a, xp) in theta[..na].iter().zip(&self.x_hist) {
-            x -= a * xp;
-        }
-        for j in 0..=nb {
-            x += theta[na + j] * self.u_hist.get(d + j - 1);
-        }
-        // Capped so that the bound itself stays finite after extreme (but finite) inputs: an infinite x^ would
-        // make the saved state unrestorable (JSON has no infinity).
-        let xb = (X_CLAMP * (1.0 + self.u_max + self.y_max)).min(1e300);
-        // NaN only if theta * x^ overflowed (absurd data); restart the auxiliary model from 0 then.
-        let x = if x.is_nan() { 0.0 } else { x.clamp(-xb, xb) };
-        let dx = x - self.x_hist[0];
-
-        // Switching functions (32)-(34) from theta(k-1) and y(k-1); (35)-(38) from y.
-        let g3 = dx < 0.0;
-        let m = if g3 { m2 } else { 1.0 };
-        let yp = self.y_prev;
-        let g1 = yp + c1 < x;
-        let g2 = yp / m2 - c2 > x;
-        let dy = y - yp;
-        let (g4, g5) = if cfg.eps > 0.0 {
-            (dy >= cfg.eps, -dy >= cfg.eps)
-        } else {
-            (dy > 0.0, -dy > 0.0)
-        };
-        let up = g1 && g4;
-        let down = g2 && g5;
-        let phi = up || down; // (42)
-
-        // Regressor (25) with the fixes listed in the module doc.
-        let sgn = if dx > 0.0 {
-            1.0
-        } else if dx < 0.0 {
-            -1.0
-        } else {
-            0.0
-        };
-        let mut h = [0.0; MAX_N];
-        for (hi, xp) in h[..na].iter_mut().zip(&self.x_hist) {
-            *hi = -xp;
-        }
-        for j in 0..=nb {
-            h[na + j] = self.u_hist.get(d + j - 1);
-        }
-        h[n - 3] = if g3 { x } else { 0.0 };
-        h[n - 2] = if up { -0.5 * m * (sgn + 1.0) } else { 0.0 };
-        h[n - 1] = if down { 0.5 * m * (1.0 - sgn) } else { 0.0 };
-
-        // (17) with (28)-(29)/(41): y1^ = h^T theta(k-1); y_c^ = y when Phi = 1, y1^ otherwise.
-        let y1 = self.core.predict(&h);
-        // An overflowing prediction (absurd data only) is not used: the sample is treated as held.
-        let phi = phi && y1.is_finite();
-        let y_hat = if phi { y1 } else { yp };
-        let e = y - y_hat;
-
-        let mut updating = false;
-        if phi {
-            let k = self.samples + 1;
-            let rho = cfg.rho(k);
-            let mu = cfg.rho(k - 1) / rho * (1.0 - rho); // (30)
-            let floor = (SIGMA_REL_FLOOR * self.y_max * self.y_max).max(f64::MIN_POSITIVE);
-            let sigma = (self.sigma + rho * (e * e - self.sigma)).max(floor); // (22)
-            let p_cap = n as f64 * cfg.p0;
-            if sigma.is_finite() && self.core.update(&h, e, mu, sigma, p_cap) {
-                self.sigma = sigma;
-                updating = true;
-            }
-        }
+        let (x, r) = self.core.with(Sample {
+            cfg: &self.cfg,
+            sigma: &mut self.sigma,
+            u_hist: &self.u_hist,
+            x_hist: &self.x_hist,
+            y_prev: self.y_prev,
+            u_max: self.u_max,
+            y_max: self.y_max,
+            samples: self.samples,
+            y,
+        });
 
         // Close sample k.
         self.x_hist.copy_within(0..MAX_ORDER - 1, 1);
@@ -521,8 +455,10 @@ impl Mrgia {
         self.u_hist.push(u);
         self.y_prev = y;
         self.samples += 1;
-        self.last = StepResult { y_hat, e, updating };
-        self.last
+        // Returned from the local, not re-read from `self.last`: reading the freshly stored struct back as one
+        // word stalled on store forwarding (a sixth of this function's time).
+        self.last = r;
+        r
     }
 
     /// The current estimate theta(k) in the plant's parameterisation (m1 = 1, m2 = 1 + theta[na+nb+1]).
@@ -563,6 +499,117 @@ impl Mrgia {
     /// The result of the latest update (all zeros before the first).
     pub fn last(&self) -> StepResult {
         self.last
+    }
+}
+
+/// Sample k of [`Mrgia::update`] on the estimator's theta and P at their actual dimension `N`: steps 1-5 of
+/// the module docs. Returns x^(k) and the result; the caller closes the sample (histories, counters).
+struct Sample<'a> {
+    cfg: &'a MrgiaConfig,
+    /// Sigma(k-1) in, Sigma(k) out.
+    sigma: &'a mut f64,
+    u_hist: &'a URing,
+    x_hist: &'a [f64; MAX_ORDER],
+    y_prev: f64,
+    /// Including sample k.
+    u_max: f64,
+    y_max: f64,
+    /// Samples processed before this one.
+    samples: u64,
+    y: f64,
+}
+
+impl WithRls for Sample<'_> {
+    type Out = (f64, StepResult);
+
+    #[inline]
+    fn run<const N: usize>(self, rls: &mut Rls<N>) -> (f64, StepResult) {
+        let Sample {
+            cfg,
+            sigma: sigma_state,
+            u_hist,
+            x_hist,
+            y_prev: yp,
+            u_max,
+            y_max,
+            samples,
+            y,
+        } = self;
+        let (na, nb, d) = (cfg.na, cfg.nb, cfg.delay);
+        let theta = &rls.theta;
+        let (c1, c2) = (theta[N - 2], theta[N - 1]);
+        let m2 = (1.0 + theta[N - 3]).max(M2_FLOOR);
+
+        // (27): the auxiliary linear model with theta(k-1).
+        let mut x = 0.0;
+        for (a, xp) in theta.as_slice()[..na].iter().zip(x_hist) {
+            x -= a * xp;
+        }
+        for j in 0..=nb {
+            x += theta[na + j] * u_hist.get(d + j - 1);
+        }
+        // Capped so that the bound itself stays finite after extreme (but finite) inputs: an infinite x^ would
+        // make the saved state unrestorable (JSON has no infinity).
+        let xb = (X_CLAMP * (1.0 + u_max + y_max)).min(1e300);
+        // NaN only if theta * x^ overflowed (absurd data); restart the auxiliary model from 0 then.
+        let x = if x.is_nan() { 0.0 } else { x.clamp(-xb, xb) };
+        let dx = x - x_hist[0];
+
+        // Switching functions (32)-(34) from theta(k-1) and y(k-1); (35)-(38) from y.
+        let g3 = dx < 0.0;
+        let m = if g3 { m2 } else { 1.0 };
+        let g1 = yp + c1 < x;
+        let g2 = yp / m2 - c2 > x;
+        let dy = y - yp;
+        let (g4, g5) = if cfg.eps > 0.0 {
+            (dy >= cfg.eps, -dy >= cfg.eps)
+        } else {
+            (dy > 0.0, -dy > 0.0)
+        };
+        let up = g1 && g4;
+        let down = g2 && g5;
+        let phi = up || down; // (42)
+
+        // Regressor (25) with the fixes listed in the module doc.
+        let sgn = if dx > 0.0 {
+            1.0
+        } else if dx < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        let mut h = SVector::<f64, N>::zeros();
+        for (hi, xp) in h.as_mut_slice()[..na].iter_mut().zip(x_hist) {
+            *hi = -xp;
+        }
+        for (j, hj) in h.as_mut_slice()[na..=na + nb].iter_mut().enumerate() {
+            *hj = u_hist.get(d + j - 1);
+        }
+        h[N - 3] = if g3 { x } else { 0.0 };
+        h[N - 2] = if up { -0.5 * m * (sgn + 1.0) } else { 0.0 };
+        h[N - 1] = if down { 0.5 * m * (1.0 - sgn) } else { 0.0 };
+
+        // (17) with (28)-(29)/(41): y1^ = h^T theta(k-1); y_c^ = y when Phi = 1, y1^ otherwise.
+        let y1 = rls.predict(&h);
+        // An overflowing prediction (absurd data only) is not used: the sample is treated as held.
+        let phi = phi && y1.is_finite();
+        let y_hat = if phi { y1 } else { yp };
+        let e = y - y_hat;
+
+        let mut updating = false;
+        if phi {
+            let k = samples + 1;
+            let rho = cfg.rho(k);
+            let mu = cfg.rho(k - 1) / rho * (1.0 - rho); // (30)
+            let floor = (SIGMA_REL_FLOOR * y_max * y_max).max(f64::MIN_POSITIVE);
+            let sigma = (*sigma_state + rho * (e * e - *sigma_state)).max(floor); // (22)
+            let p_cap = N as f64 * cfg.p0;
+            if sigma.is_finite() && rls.update_with(&h, e, mu, sigma, p_cap) {
+                *sigma_state = sigma;
+                updating = true;
+            }
+        }
+        (x, StepResult { y_hat, e, updating })
     }
 }
 
