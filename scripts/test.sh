@@ -14,5 +14,5 @@ echo "== cargo test --release"
 cargo test --release
 echo "== pytest"
 .venv/bin/python -m pytest -q tests/python
-echo "== compliance: valgrind, fmutool, long fuzz, 1e7-row RSS"
+echo "== compliance: valgrind, fmutool, long fuzz, 1 GB file in bounded memory"
 bash scripts/compliance.sh

@@ -2,7 +2,7 @@
 
 use anyhow::{Context, Result};
 use backlash::identify::mrgia::{Mrgia, MrgiaConfig, StepResult};
-use backlash::io::{AtomicFile, RowReader};
+use backlash::io::{AtomicFile, ReadAhead, RowReader};
 use backlash::report::plot::{Series, line_plot};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
@@ -172,7 +172,7 @@ impl Decimated {
 pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
     let cfg = args.config()?;
     let mut est = Mrgia::new(cfg)?;
-    let mut rows = RowReader::open(&args.file, &["time", "u", "y"])?;
+    let rows = RowReader::open(&args.file, &["time", "u", "y"])?;
     let labels = names(&cfg);
     let mut trace = match &args.trace {
         Some(path) => {
@@ -198,31 +198,34 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
     });
     let mut updates = 0u64;
     let mut k = 0u64;
-    while let Some(row) = rows.next_row()? {
-        let (t, u, y) = (row[0], row[1], row[2]);
-        let r = est.update(u, y);
-        updates += u64::from(r.updating);
-        if let Some((w, path)) = &mut trace {
-            write_trace_row(w, t, &flat(&est), &r)
-                .with_context(|| format!("{}: cannot write the trace", path.display()))?;
+    // Reading and parsing the text run on a second thread, one batch ahead of the estimator.
+    let mut rows = ReadAhead::spawn(rows);
+    while let Some(batch) = rows.next_batch()? {
+        for row in batch.values.chunks_exact(3) {
+            let (t, u, y) = (row[0], row[1], row[2]);
+            let r = est.update(u, y);
+            updates += u64::from(r.updating);
+            if let Some((w, path)) = &mut trace {
+                write_trace_row(w, t, &flat(&est), &r)
+                    .with_context(|| format!("{}: cannot write the trace", path.display()))?;
+            }
+            if let Some(p) = &mut plot
+                && p.wants(k)
+            {
+                p.push(k, &flat(&est));
+            }
+            k += 1;
         }
-        if let Some(p) = &mut plot
-            && p.wants(k)
-        {
-            p.push(k, &flat(&est));
-        }
-        if let Some(b) = &bar
-            && k.is_multiple_of(65536)
-        {
-            b.set_position(rows.bytes_read());
+        if let Some(b) = &bar {
+            b.set_position(batch.bytes_read);
             b.set_message(format!("{k} samples"));
         }
-        k += 1;
+        rows.recycle(batch);
     }
     if let Some(b) = bar {
         b.finish_and_clear();
     }
-    let samples = rows.rows();
+    let samples = rows.rows().unwrap_or(k);
     if let Some((w, path)) = trace {
         w.commit()
             .with_context(|| format!("{}: cannot write the trace", path.display()))?;
