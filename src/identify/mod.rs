@@ -7,3 +7,5 @@
 pub mod frequency;
 pub mod mrgia;
 pub mod oe;
+#[cfg(test)]
+mod test_plants;

@@ -8,7 +8,7 @@ use nalgebra::{DMatrix, SMatrix, SVector};
 use proptest::prelude::*;
 use rand_chacha::ChaCha8Rng;
 use rand_core::SeedableRng;
-use rand_distr::{Distribution, StandardNormal, StandardUniform};
+use rand_distr::{Distribution, StandardNormal};
 
 const PAPER_TRUTH: [f64; 6] = [0.45, 0.55, 0.8, 0.5, 0.5, 1.0]; // theta: a1, a2, b0, m2 - 1, c1, c2
 
@@ -755,56 +755,9 @@ fn wear_step_in_the_gaps_is_tracked() {
     );
 }
 
-/// A random stable ARX block (poles inside radius 0.8) with a random backlash.
+/// A random plant for these tests: na, nb <= 4, delays from 1 to 64.
 fn random_plant(rng: &mut ChaCha8Rng) -> PlantParams {
-    let mut unif = |lo: f64, hi: f64| -> f64 {
-        let r: f64 = StandardUniform.sample(rng);
-        lo + (hi - lo) * r
-    };
-    let na = (unif(0.0, 5.0) as usize).min(4);
-    let nb = (unif(0.0, 5.0) as usize).min(4);
-    let delay = [1, 2, 3, 5, 17, 64][(unif(0.0, 6.0) as usize).min(5)];
-    // A(z) = prod (1 - p z^-1), complex pairs as (1 - 2 r cos(phi) z^-1 + r^2 z^-2).
-    let mut poly = vec![1.0];
-    while poly.len() - 1 < na {
-        let factor = if na - (poly.len() - 1) >= 2 && unif(0.0, 1.0) < 0.5 {
-            let (r, phi) = (unif(0.2, 0.8), unif(0.0, std::f64::consts::PI));
-            vec![1.0, -2.0 * r * phi.cos(), r * r]
-        } else {
-            vec![1.0, -unif(-0.8, 0.8)]
-        };
-        let mut next = vec![0.0; poly.len() + factor.len() - 1];
-        for (i, p) in poly.iter().enumerate() {
-            for (j, f) in factor.iter().enumerate() {
-                next[i + j] += p * f;
-            }
-        }
-        poly = next;
-    }
-    let mut a = [0.0; 4];
-    a[..na].copy_from_slice(&poly[1..]);
-    let mut b = [0.0; 5];
-    for v in b.iter_mut().take(nb + 1) {
-        *v = unif(-1.0, 1.0);
-    }
-    b[0] = if b[0] < 0.0 { b[0] - 0.3 } else { b[0] + 0.3 };
-    PlantParams {
-        arx: ArxParams {
-            na,
-            nb,
-            delay,
-            a,
-            b,
-        },
-        backlash: BacklashParams {
-            m1: 1.0,
-            m2: unif(0.5, 2.0),
-            c1: unif(0.1, 1.0),
-            c2: unif(0.1, 1.0),
-        },
-        noise_std: 0.0,
-        noise_seed: 0,
-    }
+    crate::identify::test_plants::random_plant(rng, 4, 4, &[1, 2, 3, 5, 17, 64])
 }
 
 /// Target 4: random stable plants, noise-free, matching orders and delay. MRGIA does not converge exactly

@@ -9,7 +9,7 @@ use crate::identify::mrgia::{max_rel_error, paper_input};
 use crate::plant::Plant;
 use rand_chacha::ChaCha8Rng;
 use rand_core::SeedableRng;
-use rand_distr::{Distribution, StandardNormal, StandardUniform};
+use rand_distr::{Distribution, StandardNormal};
 
 fn paper_record(n: usize, seed: u64, snr: Option<f64>) -> (Vec<f64>, Vec<f64>, f64) {
     let u = paper_input(n, seed);
@@ -263,55 +263,9 @@ fn monte_carlo_oe_is_efficient_and_its_intervals_cover() {
     }
 }
 
-/// A random stable ARX block (poles inside radius 0.8), na <= 3, nb <= 2, delay 1..=3, random backlash.
+/// A random plant for these tests: na <= 3, nb <= 2, delay 1..=3.
 fn random_plant(rng: &mut ChaCha8Rng) -> PlantParams {
-    let mut unif = |lo: f64, hi: f64| -> f64 {
-        let r: f64 = StandardUniform.sample(rng);
-        lo + (hi - lo) * r
-    };
-    let na = (unif(0.0, 4.0) as usize).min(3);
-    let nb = (unif(0.0, 3.0) as usize).min(2);
-    let delay = 1 + (unif(0.0, 3.0) as usize).min(2);
-    let mut poly = vec![1.0];
-    while poly.len() - 1 < na {
-        let factor = if na - (poly.len() - 1) >= 2 && unif(0.0, 1.0) < 0.5 {
-            let (r, phi) = (unif(0.2, 0.8), unif(0.0, std::f64::consts::PI));
-            vec![1.0, -2.0 * r * phi.cos(), r * r]
-        } else {
-            vec![1.0, -unif(-0.8, 0.8)]
-        };
-        let mut next = vec![0.0; poly.len() + factor.len() - 1];
-        for (i, p) in poly.iter().enumerate() {
-            for (j, f) in factor.iter().enumerate() {
-                next[i + j] += p * f;
-            }
-        }
-        poly = next;
-    }
-    let mut a = [0.0; 4];
-    a[..na].copy_from_slice(&poly[1..]);
-    let mut b = [0.0; 5];
-    for v in b.iter_mut().take(nb + 1) {
-        *v = unif(-1.0, 1.0);
-    }
-    b[0] = if b[0] < 0.0 { b[0] - 0.3 } else { b[0] + 0.3 };
-    PlantParams {
-        arx: ArxParams {
-            na,
-            nb,
-            delay,
-            a,
-            b,
-        },
-        backlash: BacklashParams {
-            m1: 1.0,
-            m2: unif(0.5, 2.0),
-            c1: unif(0.1, 1.0),
-            c2: unif(0.1, 1.0),
-        },
-        noise_std: 0.0,
-        noise_seed: 0,
-    }
+    crate::identify::test_plants::random_plant(rng, 3, 2, &[1, 2, 3])
 }
 
 /// Largest |theta_i - ref_i| / max(|ref_i|, 0.05).
