@@ -21,3 +21,5 @@ if [ ! -x .venv/bin/python ]; then
     python3 -m venv .venv
 fi
 .venv/bin/python -m pip install -q --disable-pip-version-check -r tests/python/requirements.txt
+# sysidentpy (test-only) caps numpy below the pinned version; its own dependencies are pinned above.
+.venv/bin/python -m pip install -q --disable-pip-version-check --no-deps -r tests/python/requirements-peers.txt

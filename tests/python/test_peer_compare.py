@@ -1,0 +1,126 @@
+"""The peers of scripts/peer_compare.py on synthetic records whose answer is known."""
+import importlib.util
+import math
+import pathlib
+import sys
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+_spec = importlib.util.spec_from_file_location("peer_compare", ROOT / "scripts" / "peer_compare.py")
+pc = importlib.util.module_from_spec(_spec)
+sys.modules["peer_compare"] = pc  # dataclasses look their module up while the file runs
+_spec.loader.exec_module(pc)
+
+NOISE = 0.02
+
+
+def linear_record(n=1500, seed=1):
+    """y = x + e, x(k) = 0.7 x(k-1) + 0.5 u(k-2) + 0.3 from rest: ARX(1, 0, 2) with a constant."""
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    x = lfilter([0.0, 0.0, 0.5], [1.0, -0.7], u) + lfilter([0.3], [1.0, -0.7], np.ones(n))
+    return u, x + NOISE * rng.standard_normal(n)
+
+
+def polynomial_record(n=1200, seed=2):
+    """y = x + e, x(k) = 0.5 x(k-1) + 0.4 u(k-1) + 0.3 u(k-1)^2 from rest: a degree-2 NARX."""
+    rng = np.random.default_rng(seed)
+    u = rng.uniform(-1.0, 1.0, n)
+    x = np.zeros(n)
+    for k in range(1, n):
+        x[k] = 0.5 * x[k - 1] + 0.4 * u[k - 1] + 0.3 * u[k - 1] ** 2
+    return u, x + NOISE * rng.standard_normal(n)
+
+
+def test_split_is_diagnoses_rule():
+    assert pc.split_index(273) == 191
+    assert pc.split_index(10) == 7
+    assert pc.split_index(2) == 1
+
+
+def test_block_means_drop_the_partial_block():
+    assert pc.block_means(np.arange(10.0), 4).tolist() == [1.5, 5.5]
+
+
+def test_fit_arx_recovers_the_true_coefficients():
+    u, y = linear_record()
+    m = pc.fit_arx(u, y, 1, 0, 2)
+    assert m.a == pytest.approx([-0.7], abs=0.01)
+    assert m.b == pytest.approx([0.5], abs=0.01)
+    assert m.c == pytest.approx(0.3, abs=0.01)
+
+
+def test_arx_peer_heldout_error_is_the_noise_level():
+    u, y = linear_record()
+    p = pc.arx_peer(u, y)
+    assert p.reason == ""
+    assert 0.85 * NOISE < p.heldout_rmse < 1.2 * NOISE, p
+
+
+def test_unstable_arx_is_not_eligible():
+    u = np.random.default_rng(3).standard_normal(300)
+    y = lfilter([0.0, 1.0], [1.0, -1.05], u)  # a growing record: the LS fit has a root outside the circle
+    assert pc.fit_arx(u, y, 1, 0, 1) is None
+
+
+def test_narx_peer_finds_the_polynomial_and_arx_does_not():
+    u, y = polynomial_record()
+    narx = pc.narx_peer(u, y, lags=[(1, 1), (2, 2)])
+    arx = pc.arx_peer(u, y)
+    assert narx.reason == "", narx
+    assert narx.heldout_rmse < 1.3 * NOISE, narx
+    assert arx.heldout_rmse > 3 * NOISE, arx
+
+
+def test_narx_simulation_from_rest_by_codes():
+    # y(k) = 0.5 y(k-1) + 2 u(k-1) u(k-2) + 1, from rest (y and u 0 before the first sample)
+    m = pc.NarxModel(np.array([[1001, 0], [2001, 2002], [0, 0]]), np.array([0.5, 2.0, 1.0]))
+    u = np.array([1.0, 2.0, 3.0, 0.0])
+    y = m.simulate(u, y_rest=0.0, u_rest=0.0, bound=1e9)
+    assert y.tolist() == [1.0, 1.5, 1.75 + 4.0, 0.5 * 5.75 + 12.0 + 1.0]
+
+
+def test_diverging_narx_simulation_is_refused():
+    m = pc.NarxModel(np.array([[1001, 1001]]), np.array([1.0]))  # y(k) = y(k-1)^2 from y = 2
+    assert m.simulate(np.zeros(50), y_rest=2.0, u_rest=0.0, bound=1e6) is None
+
+
+def test_constant_record_gives_a_reason_not_an_exception():
+    p = pc.narx_peer(np.ones(100), np.arange(100.0))
+    assert math.isnan(p.heldout_rmse) and "constant" in p.reason
+
+
+def test_run_process_stops_at_the_timeout():
+    code, _, _, seconds, _ = pc.run_process(["sleep", "5"], timeout=0.2)
+    assert code is None
+    assert seconds < 2.0
+
+
+def test_missing_binary_gives_a_row_with_the_reason(tmp_path):
+    (tmp_path / "r.csv").write_text("time,u,y\n" + "".join(f"{k},{k % 3},{k % 5}\n" for k in range(60)))
+    rec = pc.Record("synthetic", "r.csv")
+    row = pc.compare(rec, str(tmp_path / "no-such-program"), timeout=1.0, root=tmp_path)
+    assert row["N"] == 60
+    assert row["ARX RMSE"] != "n/a"
+    assert "not found" in row["notes"]
+
+
+def test_missing_record_gives_a_row_with_the_reason(tmp_path):
+    row = pc.compare(pc.Record("absent", "none.csv"), "backlash", timeout=1.0, root=tmp_path)
+    assert row["N"] == "" and "cannot read" in row["notes"]
+
+
+def test_json_of_the_new_and_the_old_cli():
+    new = {"na": 1, "nb": 0, "delay": 2, "before": {"rmse": 2.0}, "after": {"rmse": 1.0},
+           "linear": {"rmse": 1.5}, "effects": [{"id": "friction"}, {"id": "saturation"}]}
+    r = pc.DiagnoseResult()
+    pc.fill_from_json(r, new)
+    assert (r.structure, r.before, r.after, r.linear, r.effects) == ("1,0,2", 2.0, 1.0, 1.5, "friction+saturation")
+    old = {"na": 0, "nb": 0, "delay": 1, "before": {"rmse": 2.0},
+           "after": {"rmse": 0.5, "error_kind": "one-step prediction"}, "effect": {"id": None}}
+    r = pc.DiagnoseResult()
+    pc.fill_from_json(r, old)
+    assert math.isnan(r.linear) and r.effects == "none" and "one-step" in r.reason
