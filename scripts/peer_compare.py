@@ -22,7 +22,7 @@ Peers:
 Then `backlash diagnose FILE --json` runs on the same record and decimation. It is first called without
 --na/--nb/--delay (the tool chooses); if the program refuses that (an older CLI where they are required),
 it is called again with the record's fallback structure, and the table says so. Its wall time and peak
-resident memory (from wait4 on the process) are recorded; a run longer than --timeout is stopped and
+resident memory (GNU time, see run_process) are recorded; a run longer than --timeout is stopped and
 reported as such.
 
     .venv/bin/python scripts/peer_compare.py                    # every record, Markdown table on stdout
@@ -342,31 +342,62 @@ class DiagnoseResult:
     reason: str = ""
 
 
+GNU_TIME = "/usr/bin/time"
+
+
 def run_process(cmd: list[str], timeout: float) -> tuple[int | None, str, str, float, float]:
     """Run cmd; (exit code or None when stopped at the timeout, stdout, stderr, wall seconds, peak MiB).
-    The peak resident size comes from wait4 on this one process."""
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+
+    The peak resident size is that of cmd alone. This Python process is large, and Linux carries a
+    process's high-water mark across exec, so wait4 on a child started from here would report at least
+    this process's size; GNU time (Debian package `time`) starts cmd from its own small process and reports
+    cmd's peak. Without it the peak is read from /proc/PID/status (VmHWM) while cmd runs, which can miss a
+    rise in its last few milliseconds."""
+    use_time = os.access(GNU_TIME, os.X_OK)
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err, \
+            tempfile.NamedTemporaryFile("r") as peak_file:
+        full = [GNU_TIME, "-f", "%M", "-o", peak_file.name, *cmd] if use_time else cmd
         t0 = time.monotonic()
-        proc = subprocess.Popen(cmd, stdout=out, stderr=err)
-        status, usage, timed_out = None, None, False
-        while True:
-            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
-            if pid == proc.pid:
-                break
+        # Own process group: a timeout stops cmd and, with GNU time, its child too.
+        proc = subprocess.Popen(full, stdout=out, stderr=err, start_new_session=True)
+        timed_out, hwm_kib = False, 0.0
+        while proc.poll() is None:
+            if not use_time:
+                hwm_kib = max(hwm_kib, vm_hwm_kib(proc.pid))
             if time.monotonic() - t0 > timeout:
-                proc.kill()
-                _, status, usage = os.wait4(proc.pid, 0)
+                os.killpg(proc.pid, 9)
+                proc.wait()
                 timed_out = True
                 break
             time.sleep(0.005)
         seconds = time.monotonic() - t0
-        proc.returncode = os.waitstatus_to_exitcode(status)  # keep Popen from waiting again
         out.seek(0)
         err.seek(0)
         stdout = out.read().decode(errors="replace")
         stderr = err.read().decode(errors="replace")
+        peak_kib = last_number(peak_file.read()) if use_time else hwm_kib
     code = None if timed_out else proc.returncode
-    return code, stdout, stderr, seconds, usage.ru_maxrss / 1024.0
+    return code, stdout, stderr, seconds, peak_kib / 1024.0
+
+
+def vm_hwm_kib(pid: int) -> float:
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return float(line.split()[1])
+    except OSError:
+        pass
+    return 0.0
+
+
+def last_number(text: str) -> float:
+    """The last line of GNU time's -o file as a number (it starts with a note when cmd was killed)."""
+    lines = text.strip().splitlines()
+    try:
+        return float(lines[-1])
+    except (IndexError, ValueError):
+        return math.nan
 
 
 def refused_for_structure(stderr: str) -> bool:

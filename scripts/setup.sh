@@ -7,7 +7,8 @@ cd "$(dirname "$0")/.."
 need_apt=()
 # libclang: bindgen in fmi-sys (the `fmi` importer used by the Rust integration tests).
 # fontconfig/freetype: PNG plots with text (plotters). valgrind: the leak check of scripts/compliance.sh.
-for pkg in libclang-dev libfontconfig1-dev libfreetype-dev pkg-config valgrind; do
+# time: GNU time, the peak memory of a diagnose run in scripts/peer_compare.py.
+for pkg in libclang-dev libfontconfig1-dev libfreetype-dev pkg-config valgrind time; do
     dpkg -s "$pkg" >/dev/null 2>&1 || need_apt+=("$pkg")
 done
 if ((${#need_apt[@]})); then

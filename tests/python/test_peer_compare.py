@@ -25,7 +25,7 @@ def linear_record(n=1500, seed=1):
     return u, x + NOISE * rng.standard_normal(n)
 
 
-def polynomial_record(n=1200, seed=2):
+def polynomial_record(n=800, seed=2):
     """y = x + e, x(k) = 0.5 x(k-1) + 0.4 u(k-1) + 0.3 u(k-1)^2 from rest: a degree-2 NARX."""
     rng = np.random.default_rng(seed)
     u = rng.uniform(-1.0, 1.0, n)
@@ -124,3 +124,11 @@ def test_json_of_the_new_and_the_old_cli():
     r = pc.DiagnoseResult()
     pc.fill_from_json(r, old)
     assert math.isnan(r.linear) and r.effects == "none" and "one-step" in r.reason
+
+
+def test_peak_memory_is_the_childs_not_this_processs():
+    big = [sys.executable, "-c", "x = bytearray(150 * 1024 * 1024); x[::4096] = b'1' * len(x[::4096])"]
+    code, _, _, _, peak = pc.run_process(big, timeout=30.0)
+    assert code == 0 and 150 < peak < 300
+    _, _, _, _, small = pc.run_process(["true"], timeout=30.0)
+    assert small < 20
