@@ -5,7 +5,7 @@
 //! - [`identify`]: the estimators: MRGIA (paper 000), frequency LS / separable LS (paper 003).
 //! - [`diagnose`]: residual tests that trace a model's error to the effect it lacks.
 //! - [`fmi2`]: one FMI 2.0 co-simulation layer, generic over the model; [`fmus`]: the two adapters.
-//! - [`io`]: validated CSV reading, atomic writing; [`report`]: PNG plots.
+//! - [`io`]: validated CSV reading, atomic writing; [`report`]: PNG plots; [`stats`]: descriptive statistics.
 
 pub mod diagnose;
 pub mod fmi2;
@@ -14,3 +14,4 @@ pub mod identify;
 pub mod io;
 pub mod plant;
 pub mod report;
+pub mod stats;

@@ -1,4 +1,16 @@
 //! The effect catalogue: the contract's stable ids, what each means, and which residual tests point to it.
+//!
+//! | id | extension fitted | its parameters | pointed to by |
+//! | --- | --- | --- | --- |
+//! | `gap-drift` | c1(k) = c1 + r1 k, c2(k) = c2 + r2 k | r1, r2 (per sample) | drift, by mode |
+//! | `curved-borders` | upper = s + p2 s^2 + p3 s^3 (s = x - c1), lower = m2 s + q2 s^2 + q3 s^3 (s = x + c2) | p2, p3, q2, q3 | against x_hat, Billings, extremes |
+//! | `extra-delay` | delay + 1, + 2 or + 3 (each fitted, the best kept) | the delay | cross-correlation |
+//! | `linear-order` | na + 1 or nb + 1 (each fitted, the best kept) | the new coefficient | cross-correlation, Ljung-Box |
+//! | `coloured-noise` | AR(p) noise model on the output error, p = 1..3 by BIC, least squares on the residual (deterministic part kept) | phi_1..phi_p | Ljung-Box |
+//! | `saturation` | model output clipped to [lo, hi] | lo, hi | clipping, extremes, against x_hat, Billings |
+//! | `periodic-disturbance` | a_s sin(w k) + a_c cos(w k) on the output; w from the spectrum peak, a_s, a_c by least squares, then all refined | w, amplitude, phase | spectrum peak (not at a frequency the input carries), Ljung-Box |
+//! | `quantization` | the sensor rounds to offset + q Z; the model gives the expected reading for Gaussian noise of std sigma (at most 2 q) before the rounding | q and offset (from the value lattice), sigma (fitted) | value lattice |
+//! | `friction` | elasto-plastic Coulomb element with the backlash, slip levels F+ and -F-, *series* (after the backlash output) or *contact* (the play inside the element's spring); both fitted, the better kept | F+, F-, form (k_e = 1: the stiffness is carried by b, as m1 = 1) | extremes, since reversal, by mode, Billings, drift, Ljung-Box |
 
 use serde::{Deserialize, Serialize};
 
@@ -77,7 +89,7 @@ impl EffectId {
             EffectId::ExtraDelay => "a longer delay: delay + 1, + 2 or + 3 samples",
             EffectId::LinearOrder => "one more a or b coefficient in the linear block",
             EffectId::ColouredNoise => {
-                "an AR noise model on the output error (judged by one-step-ahead prediction)"
+                "an AR noise model on the output error, fitted on the residual with the deterministic part kept (judged by one-step-ahead prediction; the simulation is unchanged)"
             }
             EffectId::Saturation => "the output clipped at fitted levels lo and hi",
             EffectId::PeriodicDisturbance => {

@@ -12,6 +12,14 @@
 //!
 //! The finite-difference step of parameter j is `fd_rel (|theta_j| + typ_j)`, with `typ_j` a typical
 //! magnitude given by the caller (so that a parameter that starts at zero still gets a sensible step).
+//!
+//! Every fit is bounded: at most `max_iter` Jacobians and `max_evals` residual evaluations, and it stops at
+//! `deadline` (returning the best point so far). It stops early, as `identify oe` does, when the
+//! Gauss-Newton step is statistically negligible: `g^T (J^T J)^-1 g <= stat_tol s^2` with
+//! `s^2 = cost / (n - p)` (the step moves the estimate by less than `sqrt(stat_tol)` standard errors), which
+//! on long records ends the fit after a few iterations instead of wobbling between the kinks of the cost.
+
+use std::time::Instant;
 
 use nalgebra::{DMatrix, DVector};
 
@@ -28,6 +36,12 @@ pub struct LmOptions {
     pub lambda0: f64,
     /// Give up when the damping exceeds this (no descent direction the fitter can find).
     pub lambda_max: f64,
+    /// Stop when the Gauss-Newton step is shorter than `sqrt(stat_tol)` standard errors (0: never).
+    pub stat_tol: f64,
+    /// Most residual evaluations (simulations) in one fit.
+    pub max_evals: usize,
+    /// Stop at this instant (keeping the best point so far).
+    pub deadline: Option<Instant>,
 }
 
 impl Default for LmOptions {
@@ -38,6 +52,9 @@ impl Default for LmOptions {
             fd_rel: 1e-6,
             lambda0: 1e-3,
             lambda_max: 1e8,
+            stat_tol: 0.01,
+            max_evals: 4000,
+            deadline: None,
         }
     }
 }
@@ -122,43 +139,18 @@ pub fn levenberg_marquardt<R: Residuals + ?Sized>(
     let mut jac = vec![0.0; n * q];
     let mut rt = Vec::with_capacity(n);
     let mut trial = theta.clone();
-    'outer: while iterations < opts.max_iter {
+    let out_of_time = || opts.deadline.is_some_and(|d| Instant::now() >= d);
+    'outer: while iterations < opts.max_iter && evaluations + q < opts.max_evals && !out_of_time() {
         iterations += 1;
-        // Forward-difference Jacobian, column-major over the free parameters.
-        for (c, &j) in free.iter().enumerate() {
-            let h0 = opts.fd_rel * (theta[j].abs() + typ[j].abs()).max(f64::MIN_POSITIVE);
-            let col = &mut jac[c * n..(c + 1) * n];
-            // Forward difference; if theta + h is not a valid model (theta sits on the edge of the valid
-            // region), the backward one; if neither, the parameter is locally inert.
-            let mut done = false;
-            for sign in [1.0, -1.0] {
-                trial.copy_from_slice(&theta);
-                trial[j] += sign * h0;
-                let h = trial[j] - theta[j];
-                evaluations += 1;
-                if h != 0.0 && evaluate(f, &trial, &mut rt).is_some() && rt.len() == n {
-                    // r = y - model: d r / d theta = (r(theta + h) - r(theta)) / h.
-                    for i in 0..n {
-                        col[i] = (rt[i] - r[i]) / h;
-                    }
-                    done = true;
-                    break;
-                }
-            }
-            if !done {
-                col.iter_mut().for_each(|v| *v = 0.0);
-            }
-        }
-        let mut h = DMatrix::<f64>::zeros(q, q);
-        let mut g = DVector::<f64>::zeros(q);
-        for a in 0..q {
-            let ca = &jac[a * n..(a + 1) * n];
-            g[a] = ca.iter().zip(&r).map(|(x, y)| x * y).sum();
-            for b in 0..=a {
-                let cb = &jac[b * n..(b + 1) * n];
-                let v: f64 = ca.iter().zip(cb).map(|(x, y)| x * y).sum();
-                h[(a, b)] = v;
-                h[(b, a)] = v;
+        evaluations += jacobian(f, &theta, &r, typ, &free, opts.fd_rel, &mut jac);
+        let (h, g) = normal_equations(&jac, &r, q);
+        // Statistically negligible step: stop (the Gauss-Newton decrement in units of the noise variance).
+        if opts.stat_tol > 0.0 && n > q {
+            let s2 = cost / (n - q) as f64;
+            if let Some(dec) = gn_decrement(&h, &g)
+                && dec <= opts.stat_tol * s2
+            {
+                break;
             }
         }
         let dmax = (0..q).map(|a| h[(a, a)]).fold(0.0f64, f64::max);
@@ -199,7 +191,7 @@ pub fn levenberg_marquardt<R: Residuals + ?Sized>(
                 }
             }
             lambda *= 4.0;
-            if lambda > opts.lambda_max {
+            if lambda > opts.lambda_max || evaluations >= opts.max_evals || out_of_time() {
                 break 'outer;
             }
         }
@@ -211,6 +203,107 @@ pub fn levenberg_marquardt<R: Residuals + ?Sized>(
         iterations,
         evaluations,
     })
+}
+
+/// Forward-difference Jacobian of the residuals at `theta` (residuals `r` there), column-major over the
+/// `free` parameters, into `jac`. Returns the evaluations spent.
+fn jacobian<R: Residuals + ?Sized>(
+    f: &R,
+    theta: &[f64],
+    r: &[f64],
+    typ: &[f64],
+    free: &[usize],
+    fd_rel: f64,
+    jac: &mut [f64],
+) -> usize {
+    let n = r.len();
+    let mut trial = theta.to_vec();
+    let mut rt = Vec::with_capacity(n);
+    let mut evaluations = 0;
+    for (c, &j) in free.iter().enumerate() {
+        let h0 = fd_rel * (theta[j].abs() + typ[j].abs()).max(f64::MIN_POSITIVE);
+        let col = &mut jac[c * n..(c + 1) * n];
+        // Forward difference; if theta + h is not a valid model (theta sits on the edge of the valid
+        // region), the backward one; if neither, the parameter is locally inert.
+        let mut done = false;
+        for sign in [1.0, -1.0] {
+            trial.copy_from_slice(theta);
+            trial[j] += sign * h0;
+            let h = trial[j] - theta[j];
+            evaluations += 1;
+            if h != 0.0 && evaluate(f, &trial, &mut rt).is_some() && rt.len() == n {
+                // r = y - model: d r / d theta = (r(theta + h) - r(theta)) / h.
+                for i in 0..n {
+                    col[i] = (rt[i] - r[i]) / h;
+                }
+                done = true;
+                break;
+            }
+        }
+        if !done {
+            col.iter_mut().for_each(|v| *v = 0.0);
+        }
+    }
+    evaluations
+}
+
+/// `J^T J` and `J^T r` of a column-major Jacobian with `q` columns.
+fn normal_equations(jac: &[f64], r: &[f64], q: usize) -> (DMatrix<f64>, DVector<f64>) {
+    let n = r.len();
+    let mut h = DMatrix::<f64>::zeros(q, q);
+    let mut g = DVector::<f64>::zeros(q);
+    for a in 0..q {
+        let ca = &jac[a * n..(a + 1) * n];
+        g[a] = ca.iter().zip(r).map(|(x, y)| x * y).sum();
+        for b in 0..=a {
+            let cb = &jac[b * n..(b + 1) * n];
+            let v: f64 = ca.iter().zip(cb).map(|(x, y)| x * y).sum();
+            h[(a, b)] = v;
+            h[(b, a)] = v;
+        }
+    }
+    (h, g)
+}
+
+/// `g^T H^-1 g` (the cost decrease a full Gauss-Newton step predicts, up to a factor), `None` when H is
+/// singular.
+fn gn_decrement(h: &DMatrix<f64>, g: &DVector<f64>) -> Option<f64> {
+    let q = g.len();
+    let dmax = (0..q).map(|a| h[(a, a)]).fold(0.0f64, f64::max);
+    let mut a = h.clone();
+    for d in 0..q {
+        a[(d, d)] += 1e-12 * dmax;
+    }
+    let x = a.cholesky()?.solve(g);
+    Some(g.dot(&x))
+}
+
+/// The covariance `s^2 (J^T J)^-1` of a least-squares estimate at `theta`, with `s^2 = cost / (n - p)`;
+/// `None` when the information matrix is singular (a parameter the data do not determine) or the point is
+/// not valid.
+pub fn covariance<R: Residuals + ?Sized>(
+    f: &R,
+    theta: &[f64],
+    typ: &[f64],
+    fd_rel: f64,
+) -> Option<DMatrix<f64>> {
+    let p = theta.len();
+    let mut r = Vec::new();
+    let cost = evaluate(f, theta, &mut r)?;
+    let n = r.len();
+    if n <= p {
+        return None;
+    }
+    let free: Vec<usize> = (0..p).collect();
+    let mut jac = vec![0.0; n * p];
+    jacobian(f, theta, &r, typ, &free, fd_rel, &mut jac);
+    let (h, _) = normal_equations(&jac, &r, p);
+    if (0..p).any(|i| h[(i, i)] <= 0.0) {
+        return None;
+    }
+    let inv = h.cholesky()?.inverse();
+    let s2 = cost / (n - p) as f64;
+    Some(inv * s2)
 }
 
 /// [`levenberg_marquardt`] from each start; the lowest cost wins. Starts whose simulation fails are skipped.

@@ -214,10 +214,12 @@ impl Extension {
     pub fn unpack(&self, th: &[f64], time_scale: f64) -> Self {
         match self {
             Extension::None => self.clone(),
+            // Noise of more than two steps hides the rounding (the expected reading is then the value
+            // itself), so sigma is bounded there: the fit cannot wander off to an unbounded parameter.
             Extension::Quantization { step, offset, .. } => Extension::Quantization {
                 step: *step,
                 offset: *offset,
-                sigma: th[0].abs(),
+                sigma: th[0].abs().min(2.0 * step),
             },
             Extension::GapDrift { .. } => Extension::GapDrift {
                 c1_rate: th[0] / time_scale,
@@ -302,6 +304,15 @@ impl Extension {
         }
         e
     }
+}
+
+/// What a fit minimises.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Objective {
+    /// Output error: y - simulation.
+    Simulation,
+    /// One-step prediction error of the model with its noise model.
+    Prediction,
 }
 
 /// A base model with one extension.

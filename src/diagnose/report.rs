@@ -13,7 +13,8 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::catalogue::EffectId;
-use super::engine::{CrossValidation, Diagnosis, structure_penalty};
+use super::decision::{DECISION_RULE, structure_penalty};
+use super::engine::{CrossValidation, Diagnosis};
 use super::model::Extension;
 use super::residual::{self, Z95};
 use crate::io::write_atomic;
@@ -59,6 +60,8 @@ pub struct ReportInput<'a> {
     pub u: &'a [f64],
     pub y: &'a [f64],
     pub decimate: usize,
+    /// The CSV's names of the time, input and output columns (the figures' axes).
+    pub columns: [&'a str; 3],
     /// The command that produced the report (to reproduce it).
     pub command: Option<String>,
     pub validations: &'a [Validation],
@@ -106,8 +109,8 @@ pub fn write_report(
     line_plot(
         &dir.join("heldout.png"),
         "Held-out part: measured output and the two models",
-        "time",
-        "output",
+        input.columns[0],
+        input.columns[2],
         &[
             Series::line("measured", pts(th, &y[nf..])).color(7),
             Series::line("declared model", pts(th, &before[nf..])).color(3),
@@ -137,8 +140,8 @@ pub fn write_report(
     line_plot(
         &dir.join("residual.png"),
         "Residual y - y_model over the record",
-        "time",
-        "residual",
+        input.columns[0],
+        &format!("residual of {}", input.columns[2]),
         &[
             Series::line("declared model", pts(t, &e0)).color(3),
             Series::line(&after_label, pts(t, &e1)).color(0),
@@ -222,8 +225,8 @@ pub fn write_report(
         line_plot(
             &dir.join(&file),
             &format!("Cross-record validation on {}", v.name),
-            "time",
-            "output",
+            input.columns[0],
+            input.columns[2],
             &[
                 Series::line("measured", pts(&v.t, &v.y)).color(7),
                 Series::line("declared model", pts(&v.t, &v.result.before)).color(3),
@@ -308,7 +311,7 @@ fn evidence(
             line_plot(
                 &path,
                 "Evidence for gap-drift: residual of the declared model on each border",
-                "time",
+                input.columns[0],
                 "running mean of the residual",
                 &[
                     Series::line("upper border (driving up)", ru).color(1),
@@ -338,12 +341,16 @@ fn evidence(
                 }
             }
             let c = d.effect().expect("chosen");
-            let (xmin, xmax) = sim.x[..nf]
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                    (a.min(*v), b.max(*v))
-                });
-            let curve = |coef: &[f64; 2], shift: f64| -> Vec<(f64, f64)> {
+            // Each fitted curve only over the x_hat its border's samples cover.
+            let curve = |coef: &[f64; 2], shift: f64, samples: &[(f64, f64)]| -> Vec<(f64, f64)> {
+                let (xmin, xmax) = samples
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| {
+                        (a.min(*x), b.max(*x))
+                    });
+                if samples.is_empty() {
+                    return Vec::new();
+                }
                 (0..=100)
                     .map(|i| {
                         let x = xmin + (xmax - xmin) * i as f64 / 100.0;
@@ -355,13 +362,21 @@ fn evidence(
             line_plot(
                 &path,
                 "Evidence for curved-borders: residual against the linear block's output",
-                "x_hat (declared model)",
+                &format!(
+                    "x_hat (the linear block's output, from {})",
+                    input.columns[1]
+                ),
                 "residual on the border",
                 &[
-                    Series::points("upper border samples", up).color(1),
-                    Series::points("lower border samples", dn).color(2),
-                    Series::line("fitted upper curvature", curve(upper, -c.model.base.c1)).color(1),
-                    Series::line("fitted lower curvature", curve(lower, c.model.base.c2)).color(2),
+                    Series::points("upper border samples", up.clone()).color(1),
+                    Series::points("lower border samples", dn.clone()).color(2),
+                    Series::line(
+                        "fitted upper curvature",
+                        curve(upper, -c.model.base.c1, &up),
+                    )
+                    .color(1),
+                    Series::line("fitted lower curvature", curve(lower, c.model.base.c2, &dn))
+                        .color(2),
                 ],
                 false,
                 false,
@@ -372,7 +387,7 @@ fn evidence(
             ))
         }
         (Some(EffectId::PeriodicDisturbance), Some(Extension::Periodic { omega, .. })) => {
-            let (w, p) = periodogram(&e0[..nf]);
+            let (w, p) = residual::periodogram(&e0[..nf], false);
             let pmax = p.iter().cloned().fold(0.0, f64::max);
             let pmin = p
                 .iter()
@@ -389,7 +404,7 @@ fn evidence(
                     Series::dashed("fitted frequency", vec![(*omega, pmin), (*omega, pmax)])
                         .color(0),
                 ],
-                false,
+                true,
                 true,
             )?;
             Ok(format!(
@@ -405,8 +420,8 @@ fn evidence(
             line_plot(
                 &path,
                 "Evidence for quantization: a stretch of the held-out part",
-                "time",
-                "output",
+                input.columns[0],
+                input.columns[2],
                 &[
                     Series::points("measured", pts(&t[k0..k1], &input.y[k0..k1])).color(7),
                     Series::line("declared model", pts(&t[k0..k1], &sim.y[k0..k1])).color(3),
@@ -491,7 +506,15 @@ fn evidence(
                 Some(e) => format!("Evidence for {e}: output against input (held-out part)"),
                 None => "No effect supported: output against input (held-out part)".to_string(),
             };
-            line_plot(&path, &title, "input u", "output", &series, false, false)?;
+            line_plot(
+                &path,
+                &title,
+                input.columns[1],
+                input.columns[2],
+                &series,
+                false,
+                false,
+            )?;
             Ok(match id {
                 Some(EffectId::Friction) => format!(
                     "Pointing test: {test}. Output against input: the measured force saturates at the slip levels and, \
@@ -507,26 +530,6 @@ fn evidence(
             })
         }
     }
-}
-
-/// Periodogram |E(w)|^2 / N of the centred series at the Fourier frequencies in (0, pi].
-fn periodogram(e: &[f64]) -> (Vec<f64>, Vec<f64>) {
-    use rustfft::{FftPlanner, num_complex::Complex};
-    let n = e.len().max(2);
-    let m = e.iter().sum::<f64>() / n as f64;
-    let mut buf: Vec<Complex<f64>> = e.iter().map(|v| Complex::new(v - m, 0.0)).collect();
-    FftPlanner::new()
-        .plan_fft_forward(buf.len())
-        .process(&mut buf);
-    let half = buf.len() / 2;
-    let w: Vec<f64> = (1..=half)
-        .map(|i| 2.0 * std::f64::consts::PI * i as f64 / buf.len() as f64)
-        .collect();
-    let p: Vec<f64> = buf[1..=half]
-        .iter()
-        .map(|z| z.norm_sqr() / n as f64)
-        .collect();
-    (w, p)
 }
 
 /// Autocorrelation r(1..=lags) of the AR process e(k) = sum phi_i e(k-i) + v(k) (Yule-Walker, by simulating
@@ -588,21 +591,63 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
     if let Some(c) = &input.command {
         let _ = writeln!(s, "Produced by `{c}`.\n");
     }
+    let st = &d.structure;
     let _ = writeln!(
         s,
-        "Declared model: pseudo-Wiener with backlash, na = {}, nb = {}, delay = {} samples (m1 = 1 is the \
-         normalisation). Record: {} samples \
+        "Model: pseudo-Wiener with backlash, {} ({}; m1 = 1 is the normalisation). Record: {} samples \
          after decimation by {}; the first {} (about {:.0}%) fit the models, the last {} are held out and only \
          used to judge them (the models are simulated over the whole record, so the held-out part starts from \
-         the right state).\n",
-        d.config.na,
-        d.config.nb,
-        d.config.delay,
+         the right state). Every held-out error below is this free-run simulation error.\n",
+        st.chosen,
+        st.chosen_by,
         d.n,
         input.decimate.max(1),
         d.n_fit,
         100.0 * d.n_fit as f64 / d.n as f64,
         d.n - d.n_fit
+    );
+    if !st.candidates.is_empty() {
+        let _ = writeln!(s, "## Structure\n");
+        let _ = writeln!(
+            s,
+            "Chosen on the fit part only ({} samples estimate, the next {} validate): {}.\n\nCriterion: {}.\n",
+            st.estimation_samples, st.validation_samples, st.reason, st.criterion
+        );
+        let _ = writeln!(
+            s,
+            "| na | nb | delay | equation-error fit, validation RMSE | backlash model, validation RMSE | chosen |"
+        );
+        let _ = writeln!(s, "| --- | --- | --- | --- | --- | --- |");
+        let opt = |v: Option<f64>| v.map_or("-".to_string(), fmt);
+        for c in st.candidates.iter().take(12) {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} |",
+                c.structure.na,
+                c.structure.nb,
+                c.structure.delay,
+                opt(c.arx_rmse),
+                opt(c.model_rmse),
+                if c.chosen { "**yes**" } else { "" }
+            );
+        }
+        let _ = writeln!(
+            s,
+            "\n({} structures compared in all; the table shows those fitted fully, then the best of the rest.)\n",
+            st.candidates.len()
+        );
+    }
+    let _ = writeln!(s, "## Backlash or a straight line?\n");
+    let _ = writeln!(
+        s,
+        "{}.\n\nThe best linear output-error model of the same structure (the backlash with c1 = -c2, m2 = 1) has \
+         held-out RMSE {} (fit part {}); the backlash model {} (fit part {}). The backlash fit starts from the \
+         linear model among others, so its fit-part error is never above it.\n",
+        d.backlash.verdict,
+        fmt(d.linear.heldout_rmse),
+        fmt(d.linear.fit_rmse),
+        fmt(d.base_heldout_rmse),
+        fmt(d.base_fit_rmse)
     );
     let _ = writeln!(s, "## Result\n");
     match effect {
@@ -622,12 +667,15 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
                 c.heldout_z,
                 fmt(-c.delta_bic)
             );
-            if c.id == EffectId::ColouredNoise {
+            if let Some(o) = c.one_step {
                 let _ = writeln!(
                     s,
-                    "For coloured-noise the held-out error is the one-step-ahead prediction error of the model with \
-                     its noise model, y(k) - [s(k) + sum phi_i (y(k-i) - s(k-i))] with s the simulated output; the \
-                     declared model's predictor is its simulation, so \"before\" is its simulation error.\n"
+                    "A noise model is judged by one-step-ahead prediction, y(k) - [s(k) + sum phi_i (y(k-i) - s(k-i))] \
+                     with s the simulated output: held-out one-step error {} before (the plain model's predictor \
+                     is its simulation) and {} after. The errors above are free-run simulation errors, as \
+                     everywhere in this report.\n",
+                    fmt(o.before),
+                    fmt(o.after)
                 );
             }
         }
@@ -640,7 +688,19 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
             );
         }
     }
-    let _ = writeln!(s, "Decision rule: {}.\n", super::engine::DECISION_RULE);
+    let _ = writeln!(s, "Decision rule: {}.\n", DECISION_RULE);
+    for why in &d.set_aside {
+        let _ = writeln!(s, "Set aside: {why}.\n");
+    }
+    if !d.not_tried.is_empty() {
+        let names: Vec<String> = d.not_tried.iter().map(|e| format!("`{e}`")).collect();
+        let _ = writeln!(
+            s,
+            "**Not tried** (the time budget of {:.0} s was spent first): {}.\n",
+            d.config.time_budget.as_secs_f64(),
+            names.join(", ")
+        );
+    }
 
     let _ = writeln!(s, "## Residual tests\n");
     let _ = writeln!(

@@ -24,16 +24,10 @@ use crate::plant::Mode;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
+use crate::stats::mean;
+
 /// z for a two-sided 95% band.
 pub const Z95: f64 = 1.959_963_984_540_054;
-
-fn mean(x: &[f64]) -> f64 {
-    if x.is_empty() {
-        0.0
-    } else {
-        x.iter().sum::<f64>() / x.len() as f64
-    }
-}
 
 fn centred(x: &[f64]) -> Vec<f64> {
     let m = mean(x);
@@ -438,26 +432,17 @@ pub fn drift(e: &[f64], modes: &[Mode]) -> Verdict {
 /// times the median rejects (a false alarm probability of about e^-6 per record). Returns the peak's angular
 /// frequency.
 pub fn spectrum_peak(e: &[f64]) -> (f64, Verdict) {
-    use rustfft::{FftPlanner, num_complex::Complex};
-    let c = centred(e);
-    let n = c.len().max(2);
-    let m = (2 * n).next_power_of_two();
-    let mut buf: Vec<Complex<f64>> = c.iter().map(|&x| Complex::new(x, 0.0)).collect();
-    buf.resize(m, Complex::new(0.0, 0.0));
-    FftPlanner::new().plan_fft_forward(m).process(&mut buf);
-    let power: Vec<f64> = buf[1..=m / 2]
-        .iter()
-        .map(|z| z.norm_sqr() / n as f64)
-        .collect();
-    let mut sorted = power.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2].max(f64::MIN_POSITIVE);
+    let n = e.len().max(2);
+    let (omegas, power) = periodogram(e, true);
+    let median = crate::stats::quantile(&power, 0.5)
+        .unwrap_or(0.0)
+        .max(f64::MIN_POSITIVE);
     let (imax, pmax) =
         power.iter().enumerate().fold(
             (0, 0.0),
             |acc, (i, p)| if *p > acc.1 { (i, *p) } else { acc },
         );
-    let w = 2.0 * std::f64::consts::PI * (imax + 1) as f64 / m as f64;
+    let w = omegas.get(imax).copied().unwrap_or(std::f64::consts::PI);
     // Independent ordinates: the n/2 Fourier frequencies (padding interpolates between them).
     let threshold = (((n / 2).max(2) as f64).ln() + 6.0) / std::f64::consts::LN_2;
     let stat = pmax / median;
@@ -474,6 +459,31 @@ pub fn spectrum_peak(e: &[f64]) -> (f64, Verdict) {
             ),
         },
     )
+}
+
+/// Periodogram |X(w)|^2 / n of the centred series at w = 2 pi i / m, i = 1..=m/2, m the FFT length: n
+/// itself, or with `pad` the power of two at least 2n (which interpolates between the Fourier frequencies).
+/// Returns (w, power); empty for fewer than 2 samples.
+pub fn periodogram(x: &[f64], pad: bool) -> (Vec<f64>, Vec<f64>) {
+    use rustfft::{FftPlanner, num_complex::Complex};
+    let n = x.len();
+    if n < 2 {
+        return (Vec::new(), Vec::new());
+    }
+    let m = if pad { (2 * n).next_power_of_two() } else { n };
+    let c = centred(x);
+    let mut buf: Vec<Complex<f64>> = c.iter().map(|&v| Complex::new(v, 0.0)).collect();
+    buf.resize(m, Complex::new(0.0, 0.0));
+    FftPlanner::new().plan_fft_forward(m).process(&mut buf);
+    let half = m / 2;
+    let w = (1..=half)
+        .map(|i| 2.0 * std::f64::consts::PI * i as f64 / m as f64)
+        .collect();
+    let p = buf[1..=half]
+        .iter()
+        .map(|z| z.norm_sqr() / n as f64)
+        .collect();
+    (w, p)
 }
 
 /// Whether the measured values sit on a lattice q k + o: the step q is the smallest difference between

@@ -337,6 +337,12 @@ pub fn expected_reading(q: &Quantization, v: f64, sigma: f64) -> f64 {
     if s < 1e-9 {
         return quantize(q, v);
     }
+    // Noise of more than two steps hides the rounding: the expected reading differs from v by the Fourier
+    // series sum_k (-1)^k sin(2 pi k z) exp(-2 pi^2 k^2 s^2) / (pi k), below 1e-34 relative for s >= 2. This
+    // also bounds the loop below to 35 terms whatever sigma is.
+    if s >= 2.0 || !s.is_finite() {
+        return v;
+    }
     // round(X) = m_lo + #{m in (m_lo, m_hi] : X > m - 1/2} when X is in (m_lo - 1/2, m_hi + 1/2), which
     // holds to 1e-15 for a window of 8.5 standard deviations on either side.
     let m_lo = (z - 8.5 * s).round();
@@ -575,6 +581,12 @@ mod tests {
         // and the mean of many noisy readings in between.
         assert_eq!(expected_reading(&q, 0.3, 0.0), quantize(&q, 0.3));
         assert!((expected_reading(&q, 0.3, 1.0) - 0.3).abs() < 1e-6);
+        // Just below the cut-off the series is already the identity to rounding; above it (and for a huge
+        // or non-finite sigma, which used to loop for ever) the value itself.
+        assert!((expected_reading(&q, 0.3, 0.499) - 0.3).abs() < 1e-13);
+        assert_eq!(expected_reading(&q, 0.3, 0.5), 0.3);
+        assert_eq!(expected_reading(&q, 0.3, 1e300), 0.3);
+        assert_eq!(expected_reading(&q, 0.3, f64::INFINITY), 0.3);
         let mut r = ChaCha8Rng::seed_from_u64(5);
         let m: f64 = (0..200_000)
             .map(|_| {

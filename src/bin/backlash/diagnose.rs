@@ -2,25 +2,34 @@
 
 use anyhow::{Context, Result, bail};
 use backlash::diagnose::engine::{DiagnoseConfig, diagnose};
+use backlash::diagnose::output::DiagnosisOut;
 use backlash::diagnose::record::decimate;
 use backlash::diagnose::report::{ReportInput, Validation, write_report};
 use backlash::io::Table;
-use serde_json::json;
+use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
 pub struct DiagnoseArgs {
     /// Data file: CSV with columns time,u,y (any order; other columns ignored; names configurable).
     pub file: PathBuf,
-    /// Number of a coefficients of the declared model (0..4).
-    #[arg(long)]
-    pub na: usize,
-    /// Highest b index of the declared model (0..4).
-    #[arg(long)]
-    pub nb: usize,
-    /// Input delay of the declared model, in samples after decimation (>= 1).
-    #[arg(long)]
-    pub delay: usize,
+    /// Number of a coefficients of the declared model (0 to 4). Without --na, --nb and --delay the
+    /// structure is chosen from the fit part of the data.
+    #[arg(long, requires_all = ["nb", "delay"])]
+    pub na: Option<usize>,
+    /// Highest b index of the declared model (0 to 4).
+    #[arg(long, requires_all = ["na", "delay"])]
+    pub nb: Option<usize>,
+    /// Input delay of the declared model, in samples after decimation (1 to 64).
+    #[arg(long, requires_all = ["na", "nb"])]
+    pub delay: Option<usize>,
+    /// The longest delay the structure selection tries, in samples after decimation (1 to 64).
+    #[arg(long, default_value_t = 10)]
+    pub max_delay: usize,
+    /// Wall-clock budget of the diagnosis in seconds; candidates not fitted when it is spent are listed as
+    /// not tried.
+    #[arg(long, default_value_t = 300.0)]
+    pub time_budget: f64,
     /// Print one JSON object on stdout and nothing else there.
     #[arg(long)]
     pub json: bool,
@@ -49,6 +58,28 @@ pub struct DiagnoseArgs {
     /// Name of the output column.
     #[arg(long, default_value = "y")]
     pub y_col: String,
+}
+
+/// The command's JSON: the diagnosis and what the command adds.
+#[derive(Serialize)]
+struct Out<'a> {
+    #[serde(flatten)]
+    diagnosis: DiagnosisOut<'a>,
+    file: String,
+    decimate: usize,
+    #[serde(rename = "Ts")]
+    ts: Option<f64>,
+    validate_on: Vec<ValidationOut>,
+    report: Option<String>,
+}
+
+#[derive(Serialize)]
+struct ValidationOut {
+    file: String,
+    samples: usize,
+    y_std: f64,
+    rmse_before: f64,
+    rmse_after: f64,
 }
 
 /// Read (time, u, y) and decimate.
@@ -89,9 +120,20 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
     }
     let [t, u, y] = load(&args.file, args)?;
     let ts = sample_period(&t);
-    let mut cfg = DiagnoseConfig::new(args.na, args.nb, args.delay);
+    let mut cfg = match (args.na, args.nb, args.delay) {
+        (Some(na), Some(nb), Some(delay)) => DiagnoseConfig::new(na, nb, delay),
+        _ => DiagnoseConfig::auto(),
+    };
+    cfg.max_delay = args.max_delay;
     cfg.fit_fraction = args.fit_fraction;
     cfg.seed = args.seed;
+    if !(args.time_budget.is_finite() && args.time_budget > 0.0 && args.time_budget <= 1e6) {
+        bail!(
+            "--time-budget {} must be a number of seconds between 0 and 1000000 (not 0)",
+            args.time_budget
+        );
+    }
+    cfg.time_budget = std::time::Duration::from_secs_f64(args.time_budget);
     let d = diagnose(&u, &y, &cfg)
         .with_context(|| format!("{}: cannot diagnose", args.file.display()))?;
 
@@ -126,6 +168,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
             u: &u,
             y: &y,
             decimate: args.decimate,
+            columns: [&args.time_col, &args.u_col, &args.y_col],
             command: Some(command),
             validations: &validations,
         };
@@ -136,25 +179,27 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
     }
 
     if args.json {
-        let mut out = d.to_json(ts);
-        out["file"] = json!(args.file.display().to_string());
-        out["decimate"] = json!(args.decimate);
-        out["Ts"] = json!(ts);
-        out["validate_on"] = json!(
-            args.validate_on
-                .iter()
-                .zip(&validations)
-                .map(|(p, v)| json!({
-                    "file": p.display().to_string(),
-                    "samples": v.result.samples,
-                    "y_std": v.result.y_std,
-                    "rmse_before": v.result.rmse_before,
-                    "rmse_after": v.result.rmse_after,
-                }))
-                .collect::<Vec<_>>()
-        );
-        out["report"] = json!(report_path.as_ref().map(|p| p.display().to_string()));
-        println!("{out}");
+        let validate_on: Vec<ValidationOut> = args
+            .validate_on
+            .iter()
+            .zip(&validations)
+            .map(|(p, v)| ValidationOut {
+                file: p.display().to_string(),
+                samples: v.result.samples,
+                y_std: v.result.y_std,
+                rmse_before: v.result.rmse_before,
+                rmse_after: v.result.rmse_after,
+            })
+            .collect();
+        let out = Out {
+            diagnosis: DiagnosisOut::new(&d, ts),
+            file: args.file.display().to_string(),
+            decimate: args.decimate,
+            ts,
+            validate_on,
+            report: report_path.as_ref().map(|p| p.display().to_string()),
+        };
+        println!("{}", serde_json::to_string(&out)?);
         return Ok(());
     }
 

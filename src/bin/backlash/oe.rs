@@ -3,13 +3,14 @@
 //! paper's example).
 
 use anyhow::{Context, Result, bail};
+use backlash::diagnose::structure::{Structure, StructureChoice, select_for_record};
 use backlash::identify::mrgia::{Estimate, paper_input};
 use backlash::identify::oe::{
     self, GridConfig, OeConfig, OeFit, Uncertainty, crb, estimate_of, fit, param_names, plant_of,
     simulate, theta_of,
 };
 use backlash::io::{Table, write_atomic};
-use backlash::plant::{ArxParams, BacklashParams, PlantParams};
+use backlash::plant::{ArxParams, BacklashParams, MAX_DELAY, PlantParams};
 use backlash::report::plot::{Series, line_plot};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
@@ -21,15 +22,19 @@ use std::time::Instant;
 pub struct OeArgs {
     /// Data file: CSV with columns time,u,y (any order; other columns ignored).
     pub file: PathBuf,
-    /// Number of a coefficients (0..4).
-    #[arg(long)]
-    pub na: usize,
-    /// Highest b index (0..4): b0..b_nb are estimated.
-    #[arg(long)]
-    pub nb: usize,
-    /// Input delay in samples (>= 1).
-    #[arg(long)]
-    pub delay: usize,
+    /// Number of a coefficients (0 to 4). Without --na, --nb and --delay the structure is chosen from the
+    /// data, as `diagnose` does.
+    #[arg(long, requires_all = ["nb", "delay"])]
+    pub na: Option<usize>,
+    /// Highest b index (0 to 4): b0..b_nb are estimated.
+    #[arg(long, requires_all = ["na", "delay"])]
+    pub nb: Option<usize>,
+    /// Input delay in samples (1 to 64).
+    #[arg(long, requires_all = ["na", "nb"])]
+    pub delay: Option<usize>,
+    /// The longest delay the structure selection tries (1 to 64).
+    #[arg(long, default_value_t = 10)]
+    pub max_delay: usize,
     /// Start only from MRGIA's recommended estimate (default: also from the paper setting's estimate and
     /// from the recommended one with halved gaps, keeping the lowest cost).
     #[arg(long)]
@@ -99,18 +104,29 @@ fn print_plan(unc: &Uncertainty, target: f64) -> Result<()> {
 }
 
 pub fn run_oe(args: &OeArgs) -> Result<()> {
-    let mut cfg = OeConfig::new(args.na, args.nb, args.delay);
-    cfg.extra_starts = !args.single_start;
-    if let Some(m) = args.max_iter {
-        cfg.max_iter = m;
+    if !(1..=MAX_DELAY).contains(&args.max_delay) {
+        bail!(
+            "--max-delay {} must be between 1 and {MAX_DELAY}",
+            args.max_delay
+        );
     }
-    cfg.validate().context("invalid setting")?;
     let table = Table::read(&args.file, &["time", "u", "y"])?;
     let (t, u, y) = (
         table.column("time").unwrap(),
         table.column("u").unwrap(),
         table.column("y").unwrap(),
     );
+    let structure = match (args.na, args.nb, args.delay) {
+        (Some(na), Some(nb), Some(delay)) => StructureChoice::declared(Structure { na, nb, delay }),
+        _ => select_for_record(u, y, args.max_delay),
+    };
+    let s = structure.chosen;
+    let mut cfg = OeConfig::new(s.na, s.nb, s.delay);
+    cfg.extra_starts = !args.single_start;
+    if let Some(m) = args.max_iter {
+        cfg.max_iter = m;
+    }
+    cfg.validate().context("invalid setting")?;
     let started = Instant::now();
     let f: OeFit = fit(&cfg, u, y).with_context(|| format!("{}", args.file.display()))?;
     let seconds = started.elapsed().as_secs_f64();
@@ -189,6 +205,10 @@ pub fn run_oe(args: &OeArgs) -> Result<()> {
             "names": names,
             "seconds": seconds,
             "config": cfg,
+            "na": s.na,
+            "nb": s.nb,
+            "delay": s.delay,
+            "structure": structure,
             "file": args.file.display().to_string(),
         });
         if let Some(c) = &bound {
@@ -199,6 +219,7 @@ pub fn run_oe(args: &OeArgs) -> Result<()> {
         }
         println!("{out}");
     } else {
+        println!("Structure: {} ({})", structure.reason, structure.chosen_by);
         println!(
             "Output-error fit on {}: {} samples, {} iterations from {} ({}), {:.1} ms",
             args.file.display(),

@@ -2,6 +2,7 @@
 
 use super::{Estimate, Mrgia, MrgiaConfig};
 use crate::plant::{Plant, PlantParams};
+use crate::stats::std_dev;
 use rand_chacha::ChaCha8Rng;
 use rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardUniform};
@@ -102,16 +103,6 @@ pub fn paper_study(
     snr: Option<f64>,
 ) -> Vec<Vec<f64>> {
     paper_study_with(seeds, ns, |_| cfg_of(), snr)
-}
-
-/// Population standard deviation.
-fn std_dev(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let n = v.len() as f64;
-    let mean = v.iter().sum::<f64>() / n;
-    (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt()
 }
 
 /// (min, median, max) of a sample (median of an even count: mean of the two middle values).

@@ -18,6 +18,7 @@ use super::{OeConfig, OeFit, crb, fit_from, param_names, theta_of};
 use crate::identify::mrgia::{Estimate, Mrgia, MrgiaConfig, paper_input};
 use crate::plant::{Plant, PlantParams};
 use crate::report::plot::{Panel, PlotError, Series, grid_plot};
+use crate::stats::std_dev;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -413,12 +414,6 @@ fn median(v: &[f64]) -> f64 {
     } else {
         s[m]
     }
-}
-
-fn std_dev(v: &[f64]) -> f64 {
-    let n = v.len().max(1) as f64;
-    let mean = v.iter().sum::<f64>() / n;
-    (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt()
 }
 
 /// The starts of [`super::fit`] from the two MRGIA estimates.

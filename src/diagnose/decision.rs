@@ -1,0 +1,189 @@
+//! The decision rule: when an extension is supported, and which supported extension wins.
+
+use super::catalogue::EffectId;
+
+/// The smallest relative fall of the held-out RMSE that counts (besides its significance): a change of the
+/// model that moves the error by less than 1% is no finding even when it is consistent.
+pub const MIN_FALL: f64 = 0.01;
+
+/// The one-sided z threshold of the held-out comparison (5%).
+pub const Z_THRESHOLD: f64 = 1.645;
+
+/// The decision rule, as written into every report.
+pub const DECISION_RULE: &str = "an extension is supported when its held-out error is at least 1% lower than the \
+current model's, the fall is significant (one-sided Diebold-Mariano z above the threshold, 5%), AND its BIC on \
+the fit part is lower; among supported deterministic extensions the lowest BIC wins; coloured-noise (judged by \
+one-step prediction) is chosen only when no deterministic extension is supported; otherwise the answer is null";
+
+/// The evidence on one candidate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Evidence {
+    /// Held-out RMSE of the current model and of the candidate (of the kind the candidate is judged by).
+    pub before: f64,
+    pub after: f64,
+    /// Diebold-Mariano z of the held-out squared-error reduction.
+    pub z: f64,
+    pub z_threshold: f64,
+    /// BIC of the candidate minus BIC of the current model.
+    pub delta_bic: f64,
+}
+
+/// A candidate's verdict: supported or not, and the reason in words naming the rule that decided.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Judgement {
+    pub supported: bool,
+    pub reason: String,
+}
+
+/// Apply the rule to one candidate.
+pub fn judge(e: &Evidence) -> Judgement {
+    let fall = if e.before > 0.0 {
+        1.0 - e.after / e.before
+    } else {
+        0.0
+    };
+    let mut failed = Vec::new();
+    if fall < MIN_FALL {
+        failed.push(if fall <= 0.0 {
+            format!(
+                "the held-out error does not fall ({} -> {})",
+                short(e.before),
+                short(e.after)
+            )
+        } else {
+            format!(
+                "the held-out error falls by only {:.2}% (at least {:.0}% needed)",
+                100.0 * fall,
+                100.0 * MIN_FALL
+            )
+        });
+    }
+    if e.z <= e.z_threshold {
+        failed.push(format!(
+            "the fall is not significant (z {:.2}, at most the threshold {:.3})",
+            e.z, e.z_threshold
+        ));
+    }
+    if e.delta_bic >= 0.0 {
+        failed.push(format!("BIC does not favour it (dBIC {:+.1})", e.delta_bic));
+    }
+    if failed.is_empty() {
+        Judgement {
+            supported: true,
+            reason: format!(
+                "held-out error falls by {:.1}% (z {:.2}) and BIC favours it (dBIC {:+.1})",
+                100.0 * fall,
+                e.z,
+                e.delta_bic
+            ),
+        }
+    } else {
+        Judgement {
+            supported: false,
+            reason: failed.join("; "),
+        }
+    }
+}
+
+fn short(v: f64) -> String {
+    format!("{v:.4e}")
+}
+
+/// The log-count of the alternative structures a candidate searched (a uniform prior over them, the
+/// model-prior term of BIC): extra-delay tries 3 delays, linear-order 2 orders; the others fit one structure.
+/// The extra delay adds no continuous parameter, so without this term it would tie exactly with a longer b
+/// polynomial whose leading terms are zero.
+pub fn structure_penalty(id: EffectId) -> f64 {
+    match id {
+        EffectId::ExtraDelay => 3f64.ln(),
+        EffectId::LinearOrder => 2f64.ln(),
+        _ => 0.0,
+    }
+}
+
+/// The winner among judged candidates `(id, supported, bic)`: the supported deterministic extension with the
+/// lowest BIC, else supported coloured-noise, else none. Returns its index.
+pub fn choose(candidates: &[(EffectId, bool, f64)]) -> Option<usize> {
+    let best_of = |deterministic: bool| {
+        candidates
+            .iter()
+            .enumerate()
+            .filter(|(_, (id, ok, _))| *ok && (*id != EffectId::ColouredNoise) == deterministic)
+            .min_by(|a, b| a.1.2.total_cmp(&b.1.2))
+            .map(|(i, _)| i)
+    };
+    best_of(true).or_else(|| best_of(false))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ev(after: f64, z: f64, delta_bic: f64) -> Evidence {
+        Evidence {
+            before: 1.0,
+            after,
+            z,
+            z_threshold: Z_THRESHOLD,
+            delta_bic,
+        }
+    }
+
+    #[test]
+    fn every_rule_must_hold_and_the_reason_names_the_one_that_failed() {
+        assert!(judge(&ev(0.9, 3.0, -5.0)).supported);
+        // Each rule alone fails the candidate and is named.
+        let small = judge(&ev(0.995, 3.0, -5.0));
+        assert!(!small.supported);
+        assert!(small.reason.contains("only 0.50%"), "{}", small.reason);
+        assert!(!small.reason.contains("significant"));
+        let rise = judge(&ev(1.2, 3.0, -5.0));
+        assert!(!rise.supported && rise.reason.contains("does not fall"));
+        let weak = judge(&ev(0.9, 1.645, -5.0));
+        assert!(!weak.supported);
+        assert!(weak.reason.contains("not significant"), "{}", weak.reason);
+        assert!(!weak.reason.contains("BIC"));
+        let bic = judge(&ev(0.9, 3.0, 0.0));
+        assert!(!bic.supported && bic.reason.contains("BIC does not favour"));
+        assert!(!bic.reason.contains("significant"));
+        // Boundaries: exactly 1% falls count, z just above the threshold counts.
+        assert!(judge(&ev(0.99, 1.6451, -0.1)).supported);
+        assert!(!judge(&ev(0.9901, 1.6451, -0.1)).supported);
+        // A zero "before" error cannot fall.
+        let zero = judge(&Evidence {
+            before: 0.0,
+            ..ev(0.0, 10.0, -1.0)
+        });
+        assert!(!zero.supported);
+    }
+
+    #[test]
+    fn penalties_are_the_log_counts() {
+        assert_eq!(structure_penalty(EffectId::ExtraDelay), 3f64.ln());
+        assert_eq!(structure_penalty(EffectId::LinearOrder), 2f64.ln());
+        assert_eq!(structure_penalty(EffectId::Friction), 0.0);
+    }
+
+    #[test]
+    fn deterministic_before_noise_and_lowest_bic_wins() {
+        use EffectId::*;
+        assert_eq!(choose(&[]), None);
+        assert_eq!(choose(&[(GapDrift, false, -10.0)]), None);
+        assert_eq!(
+            choose(&[(ColouredNoise, true, -100.0), (GapDrift, true, -1.0)]),
+            Some(1)
+        );
+        assert_eq!(
+            choose(&[(ColouredNoise, true, -100.0), (GapDrift, false, -1.0)]),
+            Some(0)
+        );
+        assert_eq!(
+            choose(&[
+                (Saturation, true, -3.0),
+                (Friction, true, -7.0),
+                (GapDrift, true, -5.0)
+            ]),
+            Some(1)
+        );
+    }
+}

@@ -1,0 +1,403 @@
+//! The diagnosis as the contract's JSON object: typed structures, serialised by serde.
+
+use serde::Serialize;
+
+use super::catalogue::EffectId;
+use super::decision::DECISION_RULE;
+use super::engine::{BacklashSupport, Candidate, Diagnosis, OneStep, TestResult};
+use super::model::{BaseModel, Extension, Model};
+use super::structure::StructureChoice;
+use crate::plant::effects::FrictionForm;
+
+/// An effect's parameters in the report's units.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum EffectParams {
+    ExtraDelay {
+        delay: usize,
+        declared_delay: usize,
+        extra: usize,
+    },
+    LinearOrder {
+        na: usize,
+        nb: usize,
+        added: String,
+        value: f64,
+    },
+    GapDrift {
+        c1_rate: f64,
+        c2_rate: f64,
+        c1_start: f64,
+        c2_start: f64,
+        c1_end: f64,
+        c2_end: f64,
+        rate_unit: &'static str,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        c1_rate_per_s: Option<f64>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        c2_rate_per_s: Option<f64>,
+    },
+    CurvedBorders {
+        upper_s2: f64,
+        upper_s3: f64,
+        lower_s2: f64,
+        lower_s3: f64,
+    },
+    Saturation {
+        lo: f64,
+        hi: f64,
+    },
+    Periodic {
+        omega: f64,
+        omega_unit: &'static str,
+        period_samples: f64,
+        amplitude: f64,
+        phase: f64,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        frequency_hz: Option<f64>,
+    },
+    Quantization {
+        step: f64,
+        offset: f64,
+        noise_before_rounding: f64,
+    },
+    Friction {
+        k_e: f64,
+        f_plus: f64,
+        f_minus: f64,
+        form: FrictionForm,
+        note: &'static str,
+    },
+    ColouredNoise {
+        ar_order: usize,
+        phi: Vec<f64>,
+    },
+    None {},
+}
+
+impl EffectParams {
+    /// The parameters of `id` fitted as `m` over `n` samples, against the `current` model; `ts` (sample
+    /// period, when known) adds per-second forms of per-sample parameters.
+    pub fn of(id: EffectId, m: &Model, current: &Model, n: usize, ts: Option<f64>) -> Self {
+        let b = &m.base;
+        match (id, &m.ext) {
+            (EffectId::ExtraDelay, _) => EffectParams::ExtraDelay {
+                delay: b.delay,
+                declared_delay: current.base.delay,
+                extra: b.delay.saturating_sub(current.base.delay),
+            },
+            (EffectId::LinearOrder, _) => {
+                let (added, value) = if b.na > current.base.na {
+                    (format!("a{}", b.na), b.a[b.na - 1])
+                } else {
+                    (format!("b{}", b.nb), b.b[b.nb])
+                };
+                EffectParams::LinearOrder {
+                    na: b.na,
+                    nb: b.nb,
+                    added,
+                    value,
+                }
+            }
+            (_, Extension::GapDrift { c1_rate, c2_rate }) => {
+                let end = n.saturating_sub(1) as f64;
+                EffectParams::GapDrift {
+                    c1_rate: *c1_rate,
+                    c2_rate: *c2_rate,
+                    c1_start: b.c1,
+                    c2_start: b.c2,
+                    c1_end: b.c1 + c1_rate * end,
+                    c2_end: b.c2 + c2_rate * end,
+                    rate_unit: "per sample",
+                    c1_rate_per_s: ts.map(|t| c1_rate / t),
+                    c2_rate_per_s: ts.map(|t| c2_rate / t),
+                }
+            }
+            (_, Extension::CurvedBorders { upper, lower }) => EffectParams::CurvedBorders {
+                upper_s2: upper[0],
+                upper_s3: upper[1],
+                lower_s2: lower[0],
+                lower_s3: lower[1],
+            },
+            (_, Extension::Saturation { lo, hi }) => EffectParams::Saturation { lo: *lo, hi: *hi },
+            (
+                _,
+                Extension::Periodic {
+                    omega,
+                    a_sin,
+                    a_cos,
+                },
+            ) => EffectParams::Periodic {
+                omega: *omega,
+                omega_unit: "rad/sample",
+                period_samples: 2.0 * std::f64::consts::PI / omega.abs().max(f64::MIN_POSITIVE),
+                amplitude: a_sin.hypot(*a_cos),
+                phase: a_cos.atan2(*a_sin),
+                frequency_hz: ts.map(|t| omega.abs() / (2.0 * std::f64::consts::PI * t)),
+            },
+            (
+                _,
+                Extension::Quantization {
+                    step,
+                    offset,
+                    sigma,
+                },
+            ) => EffectParams::Quantization {
+                step: *step,
+                offset: *offset,
+                noise_before_rounding: *sigma,
+            },
+            (
+                _,
+                Extension::Friction {
+                    f_plus,
+                    f_minus,
+                    form,
+                },
+            ) => EffectParams::Friction {
+                k_e: 1.0,
+                f_plus: *f_plus,
+                f_minus: *f_minus,
+                form: *form,
+                note: match form {
+                    FrictionForm::Series => {
+                        "series: f(k) = clamp(f(k-1) + (w(k) - w(k-1)), -f_minus, f_plus) after the backlash; k_e = 1 is the normalisation (the stiffness is carried by b, as m1 = 1 is)"
+                    }
+                    FrictionForm::Contact => {
+                        "contact: the play c1, c2 inside the spring: f = (x - z) - c1 beyond c1, m2 ((x - z) + c2) beyond -c2, 0 between, slider z moves at the slip levels; k_e = 1 is the normalisation"
+                    }
+                },
+            },
+            (_, Extension::ColouredNoise { phi }) => EffectParams::ColouredNoise {
+                ar_order: phi.len(),
+                phi: phi.clone(),
+            },
+            (_, Extension::None) => EffectParams::None {},
+        }
+    }
+}
+
+/// The plain model before any extension.
+#[derive(Debug, Serialize)]
+pub struct Before<'a> {
+    /// Held-out free-run RMSE.
+    pub rmse: f64,
+    pub fit_rmse: f64,
+    pub bic: f64,
+    pub k: usize,
+    pub model: &'a BaseModel,
+}
+
+/// The first effect kept (all fields but `id`, `parameters`, `pointed_by` absent for `null`).
+#[derive(Debug, Serialize)]
+pub struct Effect<'a> {
+    pub id: Option<EffectId>,
+    pub parameters: EffectParams,
+    pub pointed_by: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub description: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pointing_tests_rejected: Option<&'a [&'static str]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub heldout_rmse: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub heldout_z: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_kind: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub one_step: Option<OneStep>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bic: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub delta_bic: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model: Option<&'a BaseModel>,
+}
+
+/// One step of the answer: an effect added, the test that pointed to it, the held-out error after it.
+#[derive(Debug, Serialize)]
+pub struct Step {
+    pub id: EffectId,
+    pub parameters: EffectParams,
+    pub pointed_by: Option<&'static str>,
+    /// Held-out free-run RMSE after this step.
+    pub after_rmse: f64,
+}
+
+/// The final model.
+#[derive(Debug, Serialize)]
+pub struct After {
+    /// Held-out free-run RMSE (always a simulation error, comparable with `before.rmse`).
+    pub rmse: f64,
+    pub error_kind: &'static str,
+    /// With a noise model: the one-step prediction errors on the held-out part before and after it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub one_step: Option<OneStep>,
+}
+
+/// The best linear model of the structure.
+#[derive(Debug, Serialize)]
+pub struct Linear<'a> {
+    /// Held-out free-run RMSE.
+    pub rmse: f64,
+    pub fit_rmse: f64,
+    pub a: &'a [f64],
+    pub b: &'a [f64],
+    pub offset: f64,
+}
+
+/// A candidate in the JSON.
+#[derive(Debug, Serialize)]
+pub struct CandidateOut<'a> {
+    pub id: EffectId,
+    pub pointed_by: &'a [&'static str],
+    pub parameters: EffectParams,
+    pub k: usize,
+    pub fit_rmse: f64,
+    /// Held-out free-run RMSE.
+    pub heldout_rmse: f64,
+    pub heldout_z: f64,
+    pub error_kind: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub one_step: Option<OneStep>,
+    pub bic: f64,
+    pub delta_bic: f64,
+    pub supported: bool,
+    pub reason: &'a str,
+}
+
+/// The whole object.
+#[derive(Debug, Serialize)]
+pub struct DiagnosisOut<'a> {
+    pub before: Before<'a>,
+    pub effect: Effect<'a>,
+    pub effects: Vec<Step>,
+    pub after: After,
+    pub linear: Linear<'a>,
+    pub backlash: &'a BacklashSupport,
+    pub structure: &'a StructureChoice,
+    pub na: usize,
+    pub nb: usize,
+    pub delay: usize,
+    pub tests: &'a [TestResult],
+    pub tests_on: String,
+    pub set_aside: &'a [String],
+    pub candidates: Vec<CandidateOut<'a>>,
+    pub not_tried: &'a [EffectId],
+    pub decision: &'static str,
+    pub samples: usize,
+    pub fit_samples: usize,
+    pub heldout_samples: usize,
+}
+
+impl<'a> DiagnosisOut<'a> {
+    pub fn new(d: &'a Diagnosis, ts: Option<f64>) -> Self {
+        let params = |c: &Candidate| EffectParams::of(c.id, &c.model, &d.base, d.n, ts);
+        let effect = match d.effect() {
+            Some(c) => Effect {
+                id: Some(c.id),
+                parameters: params(c),
+                pointed_by: d.pointing_test(),
+                description: Some(c.id.describe()),
+                pointing_tests_rejected: Some(&c.pointed_by),
+                heldout_rmse: Some(c.heldout_rmse),
+                heldout_z: Some(c.heldout_z),
+                error_kind: Some(c.error_kind),
+                one_step: c.one_step,
+                bic: Some(c.bic),
+                delta_bic: Some(c.delta_bic),
+                model: Some(&c.model.base),
+            },
+            None => Effect {
+                id: None,
+                parameters: EffectParams::None {},
+                pointed_by: None,
+                description: None,
+                pointing_tests_rejected: None,
+                heldout_rmse: None,
+                heldout_z: None,
+                error_kind: None,
+                one_step: None,
+                bic: None,
+                delta_bic: None,
+                model: None,
+            },
+        };
+        let effects = d
+            .effect()
+            .map(|c| Step {
+                id: c.id,
+                parameters: params(c),
+                pointed_by: c.pointed_by.first().copied(),
+                after_rmse: c.heldout_rmse,
+            })
+            .into_iter()
+            .collect();
+        let lin = &d.linear.model;
+        Self {
+            before: Before {
+                rmse: d.base_heldout_rmse,
+                fit_rmse: d.base_fit_rmse,
+                bic: d.base_bic,
+                k: d.base_k,
+                model: &d.base.base,
+            },
+            effect,
+            effects,
+            after: After {
+                rmse: d.after_rmse(),
+                error_kind: "simulation",
+                one_step: d.effect().and_then(|c| c.one_step),
+            },
+            linear: Linear {
+                rmse: d.linear.heldout_rmse,
+                fit_rmse: d.linear.fit_rmse,
+                a: &lin.a,
+                b: &lin.b,
+                offset: lin.c2,
+            },
+            backlash: &d.backlash,
+            structure: &d.structure,
+            na: d.structure.chosen.na,
+            nb: d.structure.chosen.nb,
+            delay: d.structure.chosen.delay,
+            tests: &d.tests,
+            tests_on: format!(
+                "residual y - y_model of the plain model's simulation on the fit part (samples 0..{})",
+                d.n_fit
+            ),
+            set_aside: &d.set_aside,
+            candidates: d
+                .candidates
+                .iter()
+                .map(|c| CandidateOut {
+                    id: c.id,
+                    pointed_by: &c.pointed_by,
+                    parameters: params(c),
+                    k: c.k,
+                    fit_rmse: c.fit_rmse,
+                    heldout_rmse: c.heldout_rmse,
+                    heldout_z: c.heldout_z,
+                    error_kind: c.error_kind,
+                    one_step: c.one_step,
+                    bic: c.bic,
+                    delta_bic: c.delta_bic,
+                    supported: c.supported,
+                    reason: &c.reason,
+                })
+                .collect(),
+            not_tried: &d.not_tried,
+            decision: DECISION_RULE,
+            samples: d.n,
+            fit_samples: d.n_fit,
+            heldout_samples: d.n - d.n_fit,
+        }
+    }
+}
+
+impl Diagnosis {
+    /// The contract's JSON object. `ts`, when known, adds per-second forms of per-sample parameters.
+    pub fn to_json(&self, ts: Option<f64>) -> serde_json::Value {
+        serde_json::to_value(DiagnosisOut::new(self, ts)).expect("plain data serialises")
+    }
+}

@@ -1,0 +1,464 @@
+//! Fitting models on a record: the fit part, its exploration window, the linear model and the plain
+//! backlash model with their starts. The strategy of every fit ([`Problem::fit`]): screen many starts by
+//! their cost on the exploration window, run short fits from the best few there, refine the best on the
+//! whole fit part (which, with the statistical stopping rule of [`super::fit`], takes a few iterations).
+
+use std::cell::RefCell;
+use std::time::Instant;
+
+use rand_chacha::ChaCha8Rng;
+use rand_core::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+
+use super::fit::{LmOptions, covariance, levenberg_marquardt};
+use super::model::{BaseModel, Extension, Model, Objective, Simulation, is_stable};
+use super::structure::Structure;
+use crate::identify::mrgia::{Mrgia, MrgiaConfig};
+use crate::stats::std_dev;
+
+/// Exploration (screening grids of starts, short runs) uses at most this many samples of the fit part.
+pub const EXPLORE_SAMPLES: usize = 20_000;
+
+/// With more starts than this, a fit ranks them by cost and refines only this many.
+const SCREEN_KEEP: usize = 6;
+
+/// A bound on |x| beyond which a simulation counts as diverged.
+pub fn sim_limit(u: &[f64], y: &[f64]) -> f64 {
+    let umax = u.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let ymax = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    1e4 * (1.0 + umax + ymax)
+}
+
+/// A record split into a fit part (and its exploration window) and a held-out part, with the scales the fits
+/// need.
+#[derive(Clone)]
+pub(crate) struct Problem<'a> {
+    pub u: &'a [f64],
+    pub y: &'a [f64],
+    pub n_fit: usize,
+    /// Exploration uses samples `0..n_explore` (at most the fit part).
+    pub n_explore: usize,
+    pub limit: f64,
+    pub time_scale: f64,
+    pub y_scale: f64,
+    pub x_scale: f64,
+    pub lm: LmOptions,
+}
+
+impl<'a> Problem<'a> {
+    pub fn new(u: &'a [f64], y: &'a [f64], n_fit: usize, lm: LmOptions) -> Self {
+        let y_fit = &y[..n_fit];
+        let y_scale =
+            std_dev(y_fit).max(1e-12 * (1.0 + y_fit.iter().fold(0.0f64, |m, v| m.max(v.abs()))));
+        Self {
+            u,
+            y,
+            n_fit,
+            n_explore: n_fit.min(EXPLORE_SAMPLES),
+            limit: sim_limit(u, y),
+            time_scale: n_fit as f64,
+            y_scale,
+            x_scale: y_scale,
+            lm,
+        }
+    }
+
+    /// The same record with a shorter fit part (samples `0..n_fit`), for choosing on the rest of it.
+    pub fn shortened(&self, n_fit: usize) -> Self {
+        Self {
+            n_fit,
+            n_explore: n_fit.min(EXPLORE_SAMPLES),
+            time_scale: n_fit as f64,
+            ..self.clone()
+        }
+    }
+
+    pub fn out_of_time(&self) -> bool {
+        self.lm.deadline.is_some_and(|d| Instant::now() >= d)
+    }
+
+    /// Residuals of `m` on samples `0..n` into `out`.
+    fn residuals(
+        &self,
+        m: &Model,
+        obj: Objective,
+        n: usize,
+        scratch: &mut Simulation,
+        out: &mut Vec<f64>,
+    ) -> bool {
+        if !m.simulate_into(self.u, n, self.limit, scratch) {
+            return false;
+        }
+        let y = &self.y[..n];
+        match (obj, &m.ext) {
+            (Objective::Prediction, Extension::ColouredNoise { phi }) => {
+                if phi.iter().any(|p| !p.is_finite()) {
+                    return false;
+                }
+                out.extend(
+                    m.predict_from(&scratch.y, y)
+                        .iter()
+                        .zip(y)
+                        .map(|(p, v)| v - p),
+                );
+            }
+            _ => out.extend(y.iter().zip(&scratch.y).map(|(a, b)| a - b)),
+        }
+        true
+    }
+
+    /// The fit-part cost of `m` (sum of squared residuals of the objective), `None` if it is not valid.
+    pub fn cost(&self, m: &Model, obj: Objective) -> Option<f64> {
+        let mut out = Vec::with_capacity(self.n_fit);
+        let ok = self.residuals(m, obj, self.n_fit, &mut Simulation::default(), &mut out);
+        let c: f64 = out.iter().map(|v| v * v).sum();
+        (ok && c.is_finite()).then_some(c)
+    }
+
+    /// Typical magnitudes of the packed parameters of `m`.
+    fn typical(&self, m: &Model) -> Vec<f64> {
+        let mut t = m.base.typical(self.y_scale);
+        let ys = self.y_scale;
+        let xs = self.x_scale.max(1e-12);
+        t.extend(match &m.ext {
+            Extension::None => vec![],
+            Extension::Quantization { step, .. } => vec![0.1 * step],
+            Extension::GapDrift { .. } => vec![0.1 * ys; 2],
+            Extension::CurvedBorders { .. } => {
+                vec![
+                    0.1 * ys / (xs * xs),
+                    0.1 * ys / (xs * xs * xs),
+                    0.1 * ys / (xs * xs),
+                    0.1 * ys / (xs * xs * xs),
+                ]
+            }
+            Extension::Saturation { .. } | Extension::Friction { .. } => vec![ys; 2],
+            Extension::Periodic { .. } => vec![1.0 / self.n_fit as f64, 0.1 * ys, 0.1 * ys],
+            Extension::ColouredNoise { phi } => vec![0.5; phi.len()],
+        });
+        t
+    }
+
+    /// Fit `template`'s structure from `starts`. Returns the model and its fit-part cost.
+    pub fn fit(&self, template: &Model, starts: &[Model], obj: Objective) -> Option<(Model, f64)> {
+        let ts = self.time_scale;
+        let packed: Vec<Vec<f64>> = starts.iter().map(|s| s.pack(ts)).collect();
+        let unpack = |th: &[f64]| template.unpack(th, ts);
+        let (th, cost) = self.fit_packed(&unpack, &packed, &self.typical(template), obj)?;
+        Some((unpack(&th), cost))
+    }
+
+    /// The fitting strategy for any parametrisation: screen many starts by their cost on the exploration
+    /// window and keep [`SCREEN_KEEP`]; run a short fit (8 iterations) from each on the window; refine the
+    /// best on the whole fit part.
+    fn fit_packed(
+        &self,
+        unpack: &dyn Fn(&[f64]) -> Model,
+        starts: &[Vec<f64>],
+        typ: &[f64],
+        obj: Objective,
+    ) -> Option<(Vec<f64>, f64)> {
+        let scratch = RefCell::new(Simulation::default());
+        let on = |n: usize| {
+            let scratch = &scratch;
+            move |th: &[f64], out: &mut Vec<f64>| {
+                self.residuals(&unpack(th), obj, n, &mut scratch.borrow_mut(), out)
+            }
+        };
+        let window = on(self.n_explore);
+        let mut kept: Vec<&Vec<f64>> = starts.iter().collect();
+        if kept.len() > SCREEN_KEEP {
+            let mut r = Vec::new();
+            let mut scored: Vec<(f64, &Vec<f64>)> = Vec::new();
+            for s in starts {
+                r.clear();
+                if window(s, &mut r) {
+                    let c: f64 = r.iter().map(|v| v * v).sum();
+                    if c.is_finite() {
+                        scored.push((c, s));
+                    }
+                }
+            }
+            scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+            kept = scored
+                .into_iter()
+                .take(SCREEN_KEEP)
+                .map(|(_, s)| s)
+                .collect();
+        }
+        let start = if kept.len() > 1 || self.n_explore < self.n_fit {
+            let short = LmOptions {
+                max_iter: self.lm.max_iter.min(8),
+                ..self.lm
+            };
+            let mut best: Option<(Vec<f64>, f64)> = None;
+            for s in kept {
+                if let Ok(fit) = levenberg_marquardt(&window, s, typ, &[], &short)
+                    && best.as_ref().is_none_or(|b| fit.cost < b.1)
+                {
+                    best = Some((fit.theta, fit.cost));
+                }
+            }
+            best?.0
+        } else {
+            kept.first()?.to_vec()
+        };
+        let fit = levenberg_marquardt(&on(self.n_fit), &start, typ, &[], &self.lm).ok()?;
+        Some((fit.theta, fit.cost))
+    }
+
+    /// Covariance of the plain model's parameters at `m` (its fit-part information matrix).
+    pub fn plain_covariance(&self, m: &BaseModel) -> Option<nalgebra::DMatrix<f64>> {
+        let template = Model::plain(m.clone());
+        let scratch = RefCell::new(Simulation::default());
+        let f = |th: &[f64], out: &mut Vec<f64>| {
+            let mm = template.unpack(th, self.time_scale);
+            self.residuals(
+                &mm,
+                Objective::Simulation,
+                self.n_fit,
+                &mut scratch.borrow_mut(),
+                out,
+            )
+        };
+        covariance(
+            &f,
+            &template.pack(self.time_scale),
+            &self.typical(&template),
+            self.lm.fd_rel,
+        )
+    }
+
+    /// MRGIA (recommended setting) on the fit part, as a start.
+    pub fn mrgia_start(&self, s: Structure) -> Option<BaseModel> {
+        let mut est = Mrgia::new(MrgiaConfig::recommended(s.na, s.nb, s.delay)).ok()?;
+        for k in 0..self.n_fit {
+            est.update(self.u[k], self.y[k]);
+        }
+        let e = est.estimate();
+        let ok =
+            e.a.iter()
+                .chain(&e.b)
+                .chain([&e.m2, &e.c1, &e.c2])
+                .all(|v| v.is_finite());
+        ok.then(|| BaseModel {
+            na: s.na,
+            nb: s.nb,
+            delay: s.delay,
+            a: e.a.clone(),
+            b: e.b.clone(),
+            m1: 1.0,
+            m2: if e.m2 > 1e-3 { e.m2 } else { 1.0 },
+            c1: e.c1,
+            c2: e.c2,
+        })
+    }
+
+    /// Equation-error least squares of y on its past, the delayed inputs and a constant, on the fit part:
+    /// (a, b, constant). `None` when the record is too short for the structure or the equations are singular.
+    pub fn arx(&self, s: Structure) -> Option<(Vec<f64>, Vec<f64>, f64)> {
+        use nalgebra::{DMatrix, DVector};
+        let (na, nb, delay) = (s.na, s.nb, s.delay);
+        let k0 = na.max(delay + nb);
+        if self.n_fit <= k0 + na + nb + 3 {
+            return None;
+        }
+        let cols = na + nb + 2;
+        let mut h = DMatrix::<f64>::zeros(cols, cols);
+        let mut g = DVector::<f64>::zeros(cols);
+        let mut row = vec![0.0; cols];
+        for k in k0..self.n_fit {
+            for (i, r) in row.iter_mut().take(na).enumerate() {
+                *r = -self.y[k - 1 - i];
+            }
+            for j in 0..=nb {
+                row[na + j] = self.u[k - delay - j];
+            }
+            row[cols - 1] = 1.0;
+            for a in 0..cols {
+                g[a] += row[a] * self.y[k];
+                for b in 0..=a {
+                    h[(a, b)] += row[a] * row[b];
+                }
+            }
+        }
+        for a in 0..cols {
+            for b in a + 1..cols {
+                h[(a, b)] = h[(b, a)];
+            }
+        }
+        let ridge = 1e-9 * (0..cols).map(|i| h[(i, i)]).fold(0.0, f64::max);
+        for i in 0..cols {
+            h[(i, i)] += ridge.max(f64::MIN_POSITIVE);
+        }
+        let th = h.cholesky()?.solve(&g);
+        th.iter().all(|v| v.is_finite()).then(|| {
+            (
+                th.iter().take(na).copied().collect(),
+                th.iter().skip(na).take(nb + 1).copied().collect(),
+                th[cols - 1],
+            )
+        })
+    }
+}
+
+/// The linear model as a backlash with no play: `y = x + offset` on both borders.
+pub fn linear_base(s: Structure, a: &[f64], b: &[f64], offset: f64) -> BaseModel {
+    BaseModel {
+        na: s.na,
+        nb: s.nb,
+        delay: s.delay,
+        a: a.to_vec(),
+        b: b.to_vec(),
+        m1: 1.0,
+        m2: 1.0,
+        c1: -offset,
+        c2: offset,
+    }
+}
+
+/// The best linear output-error model of the structure: from the equation-error fit (stabilised) and from
+/// its FIR part, parameters a, b and the offset. Returns the model and its fit-part cost.
+pub(crate) fn fit_linear(p: &Problem, s: Structure) -> Option<(BaseModel, f64)> {
+    let mean_y = crate::stats::mean(&p.y[..p.n_fit]);
+    let (mut a, b, offset) = p
+        .arx(s)
+        .unwrap_or((vec![0.0; s.na], vec![0.0; s.nb + 1], mean_y));
+    stabilize(&mut a);
+    let pack = |a: &[f64], b: &[f64], o: f64| {
+        let mut v = a.to_vec();
+        v.extend(b);
+        v.push(o);
+        v
+    };
+    let na = s.na;
+    let nb = s.nb;
+    let unpack = move |th: &[f64]| {
+        Model::plain(linear_base(
+            s,
+            &th[..na],
+            &th[na..na + nb + 1],
+            th[na + nb + 1],
+        ))
+    };
+    let gain = b.iter().sum::<f64>() / (1.0 + a.iter().sum::<f64>());
+    let mut fir = vec![0.0; nb + 1];
+    fir[0] = gain;
+    let starts = vec![
+        pack(&a, &b, offset),
+        pack(&vec![0.0; na], &fir, offset),
+        pack(&vec![0.0; na], &vec![0.0; nb + 1], mean_y),
+    ];
+    let bmax = b
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+        .max(gain.abs())
+        .max(1e-6);
+    let mut typ = vec![0.5; na];
+    typ.extend(std::iter::repeat_n(bmax, nb + 1));
+    typ.push(p.y_scale);
+    let (th, cost) = p.fit_packed(&unpack, &starts, &typ, Objective::Simulation)?;
+    Some((unpack(&th).base, cost))
+}
+
+/// Pull an unstable start's poles inside the unit circle: a_i -> a_i r^i (every root scaled by r = 0.9)
+/// until stable.
+pub(crate) fn stabilize(a: &mut [f64]) {
+    for _ in 0..200 {
+        if is_stable(a) {
+            return;
+        }
+        let mut r = 1.0;
+        for v in a.iter_mut() {
+            r *= 0.9;
+            *v *= r;
+        }
+    }
+    a.iter_mut().for_each(|v| *v = 0.0);
+}
+
+/// Fit the plain backlash model: MRGIA, least-squares, linear and dynamics-free starts (and any `extra`
+/// ones), then perturbed restarts; never above the linear model's cost (`linear`).
+pub(crate) fn fit_plain(
+    p: &Problem,
+    s: Structure,
+    restarts: usize,
+    seed: u64,
+    linear: &(BaseModel, f64),
+    extra: &[BaseModel],
+) -> Option<(Model, f64)> {
+    let mut starts: Vec<BaseModel> = Vec::new();
+    starts.extend(p.mrgia_start(s));
+    if let Some((a, b, o)) = p.arx(s) {
+        // Unit slopes, the constant turned into gaps around a small play.
+        let gap = 0.05 * p.y_scale;
+        starts.push(BaseModel {
+            c1: -o + gap,
+            c2: o + gap,
+            ..linear_base(s, &a, &b, 0.0)
+        });
+    }
+    starts.extend(extra.iter().cloned());
+    // Always one start without dynamics (stable whatever the data), with the last start's gain if any.
+    let b0 = starts.last().map_or(vec![1.0; s.nb + 1], |m| m.b.clone());
+    starts.push(BaseModel {
+        b: b0,
+        ..BaseModel::zero(s.na, s.nb, s.delay)
+    });
+    for m in &mut starts {
+        stabilize(&mut m.a);
+        // A start with an inverted memory zone is not a backlash: keep its offset, give it a small gap.
+        let (offset, gap) = ((m.c2 - m.c1) / 2.0, (m.c1 + m.c2) / 2.0);
+        if gap < 0.01 * p.y_scale {
+            let gap = 0.01 * p.y_scale;
+            m.c1 = gap - offset;
+            m.c2 = gap + offset;
+        }
+    }
+    // The linear model itself (no play) and with a small play opened around it.
+    let (lin, lin_cost) = linear;
+    starts.push(lin.clone());
+    starts.push(BaseModel {
+        c1: lin.c1 + 0.01 * p.y_scale,
+        c2: lin.c2 + 0.01 * p.y_scale,
+        ..lin.clone()
+    });
+    let models: Vec<Model> = starts.into_iter().map(Model::plain).collect();
+    let template = models[0].clone();
+    let (mut best, mut cost) = p.fit(&template, &models, Objective::Simulation)?;
+    // Perturbed restarts around the best.
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xD1A6_0000);
+    let typ = best.base.typical(p.y_scale);
+    for _ in 0..restarts {
+        if p.out_of_time() {
+            break;
+        }
+        let th: Vec<f64> = best
+            .pack(p.time_scale)
+            .iter()
+            .zip(&typ)
+            .enumerate()
+            .map(|(j, (v, t))| {
+                let z: f64 = StandardNormal.sample(&mut rng);
+                if j < s.na {
+                    v * (1.0 + 0.1 * z)
+                } else {
+                    v + 0.3 * t * z
+                }
+            })
+            .collect();
+        if let Some((m, c)) = p.fit(
+            &best,
+            &[best.unpack(&th, p.time_scale)],
+            Objective::Simulation,
+        ) && c < cost
+        {
+            best = m;
+            cost = c;
+        }
+    }
+    if cost > *lin_cost {
+        return Some((Model::plain(lin.clone()), *lin_cost));
+    }
+    Some((best, cost))
+}

@@ -1,0 +1,358 @@
+//! Choosing the orders and the delay from the data, on the fit part only.
+//!
+//! The fit part's first [`SELECT_SAMPLES`] samples (at most) are split in two: the first two thirds
+//! *estimate*, the last third *validates*; nothing of the held-out part is seen. Every structure with
+//! na, nb in 0..=4 and delay in 1..=`max_delay` (and at most a tenth of the fit part, and short enough for
+//! the record) is scored in two stages:
+//!
+//! 1. its equation-error (ARX) least-squares fit with a constant, on the estimation part, simulated free-run
+//!    over both parts: the validation RMSE ranks all structures cheaply;
+//! 2. the five best of them, and the best static one (na = nb = 0), get the full backlash fit (linear model,
+//!    then the backlash model from all its starts) on the estimation part; their free-run RMSE on the
+//!    validation part decides.
+//!
+//! The chosen structure is the one with the fewest parameters among those within 1% of the lowest
+//! validation error (then the shortest delay): a free-run error on data the fit did not see rewards the
+//! structure that simulates well, not the one that predicts one step ahead well (equation-error criteria
+//! such as an ARX fit's BIC favour high orders that simulate poorly).
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::engine::min_samples;
+use super::fit::LmOptions;
+use super::model::Model;
+use super::problem::{Problem, fit_linear, fit_plain, linear_base, stabilize};
+use crate::plant::{MAX_DELAY, MAX_ORDER};
+use crate::stats::rms_diff;
+
+/// At most this many samples of the fit part are used for the choice.
+pub const SELECT_SAMPLES: usize = 30_000;
+
+/// How many structures of stage 1 get the full fit (besides the best static one).
+const STAGE2: usize = 5;
+
+/// Within this relative margin of the lowest validation error, the simplest structure wins.
+const MARGIN: f64 = 0.01;
+
+/// The criterion, in words, for reports.
+pub const CRITERION: &str = "free-run RMSE on the last third of the fit part's first samples of the backlash \
+model fitted on the first two thirds (structures ranked first by their equation-error fit's free-run RMSE \
+there, the five best and the best static one fitted fully); the fewest parameters within 1% of the lowest \
+error wins, then the shortest delay";
+
+/// A model structure: `na` a coefficients, b_0..b_nb, input delay in samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub struct Structure {
+    pub na: usize,
+    pub nb: usize,
+    pub delay: usize,
+}
+
+impl Structure {
+    /// Parameters of the backlash model of this structure (a, b, m2, c1, c2).
+    pub fn n_params(&self) -> usize {
+        self.na + self.nb + 4
+    }
+}
+
+impl std::fmt::Display for Structure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "na = {}, nb = {}, delay = {}",
+            self.na, self.nb, self.delay
+        )
+    }
+}
+
+/// One structure compared.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StructureCandidate {
+    #[serde(flatten)]
+    pub structure: Structure,
+    /// Validation free-run RMSE of the equation-error fit (`None`: it could not be fitted).
+    pub arx_rmse: Option<f64>,
+    /// Validation free-run RMSE of the backlash model (`None`: not fitted in stage 2).
+    pub model_rmse: Option<f64>,
+    pub chosen: bool,
+}
+
+/// The structure used and how it was chosen.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StructureChoice {
+    #[serde(flatten)]
+    pub chosen: Structure,
+    /// `declared` (given by the user) or `selected` (chosen from the data).
+    pub chosen_by: &'static str,
+    pub criterion: &'static str,
+    pub estimation_samples: usize,
+    pub validation_samples: usize,
+    /// Stage-2 structures first (by validation error), then the rest of stage 1 (by its error).
+    pub candidates: Vec<StructureCandidate>,
+    pub reason: String,
+}
+
+impl StructureChoice {
+    /// A structure given by the user.
+    pub fn declared(s: Structure) -> Self {
+        Self {
+            chosen: s,
+            chosen_by: "declared",
+            criterion: "given by the user",
+            estimation_samples: 0,
+            validation_samples: 0,
+            candidates: Vec::new(),
+            reason: format!("declared: {s}"),
+        }
+    }
+}
+
+/// The structures the record allows.
+fn grid(max_delay: usize, n_fit: usize, n_total: usize) -> Vec<Structure> {
+    let dmax = max_delay.min((n_fit / 10).max(1));
+    let mut v = Vec::new();
+    for delay in 1..=dmax {
+        for na in 0..=MAX_ORDER {
+            for nb in 0..=MAX_ORDER {
+                let s = Structure { na, nb, delay };
+                if min_samples(&s) <= n_total {
+                    v.push(s);
+                }
+            }
+        }
+    }
+    v
+}
+
+/// Choose the structure on the fit part of `p` (see the module's documentation). `n_total` is the record's
+/// length (a structure must leave enough samples).
+pub(crate) fn select(p: &Problem, max_delay: usize, n_total: usize) -> StructureChoice {
+    let n_w = p.n_fit.min(SELECT_SAMPLES);
+    let n_est = (2 * n_w / 3).max(1);
+    let est = p.shortened(n_est);
+    let validation = |m: &Model| {
+        m.simulate(p.u, n_w, p.limit)
+            .map(|s| rms_diff(&p.y[n_est..n_w], &s.y[n_est..n_w]))
+            .filter(|v| v.is_finite())
+    };
+    // Stage 1: equation-error fits of every structure.
+    let structures = grid(max_delay, p.n_fit, n_total);
+    let mut stage1: Vec<StructureCandidate> = structures
+        .par_iter()
+        .map(|&s| {
+            let arx_rmse = est.arx(s).and_then(|(mut a, b, o)| {
+                stabilize(&mut a);
+                validation(&Model::plain(linear_base(s, &a, &b, o)))
+            });
+            StructureCandidate {
+                structure: s,
+                arx_rmse,
+                model_rmse: None,
+                chosen: false,
+            }
+        })
+        .collect();
+    stage1.sort_by(|a, b| {
+        let key = |c: &StructureCandidate| c.arx_rmse.unwrap_or(f64::INFINITY);
+        key(a).total_cmp(&key(b))
+    });
+    // Stage 2: the best few and the best static structure, fitted fully.
+    let mut picked: Vec<usize> = (0..stage1.len().min(STAGE2)).collect();
+    if let Some(i) = stage1
+        .iter()
+        .position(|c| c.structure.na == 0 && c.structure.nb == 0)
+        && !picked.contains(&i)
+    {
+        picked.push(i);
+    }
+    let fitted: Vec<Option<f64>> = picked
+        .par_iter()
+        .map(|&i| {
+            let s = stage1[i].structure;
+            let linear = fit_linear(&est, s)?;
+            let (m, _) = fit_plain(&est, s, 0, 0, &linear, &[])?;
+            validation(&m)
+        })
+        .collect();
+    for (&i, r) in picked.iter().zip(fitted) {
+        stage1[i].model_rmse = r;
+    }
+    let (chosen, reason) = decide(&stage1);
+    let mut candidates = stage1;
+    for c in &mut candidates {
+        c.chosen = c.structure == chosen;
+    }
+    // Fully fitted first, by their error.
+    candidates.sort_by(|a, b| {
+        let key = |c: &StructureCandidate| (c.model_rmse.is_none(), c.model_rmse.unwrap_or(0.0));
+        let (ka, kb) = (key(a), key(b));
+        ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+    });
+    StructureChoice {
+        chosen,
+        chosen_by: "selected",
+        criterion: CRITERION,
+        estimation_samples: n_est,
+        validation_samples: n_w - n_est,
+        candidates,
+        reason,
+    }
+}
+
+/// Choose the structure for a fit on the whole record (`identify oe` without orders): the record is the fit
+/// part. `max_delay` is clamped to the plant's bound.
+pub fn select_for_record(u: &[f64], y: &[f64], max_delay: usize) -> StructureChoice {
+    let n = u.len().min(y.len());
+    if n < 2 {
+        return decide_empty();
+    }
+    let p = Problem::new(&u[..n], &y[..n], n, LmOptions::default());
+    select(&p, max_delay.clamp(1, MAX_DELAY), n)
+}
+
+fn decide_empty() -> StructureChoice {
+    let (chosen, reason) = decide(&[]);
+    StructureChoice {
+        chosen,
+        chosen_by: "selected",
+        criterion: CRITERION,
+        estimation_samples: 0,
+        validation_samples: 0,
+        candidates: Vec::new(),
+        reason,
+    }
+}
+
+/// The fewest parameters within [`MARGIN`] of the lowest stage-2 error, then the shortest delay, then the
+/// fewest a's. With no structure fitted: the smallest one.
+fn decide(c: &[StructureCandidate]) -> (Structure, String) {
+    let scored: Vec<(&StructureCandidate, f64)> = c
+        .iter()
+        .filter_map(|c| c.model_rmse.map(|r| (c, r)))
+        .collect();
+    let Some(best) = scored.iter().map(|(_, r)| *r).min_by(f64::total_cmp) else {
+        let s = Structure {
+            na: 0,
+            nb: 0,
+            delay: 1,
+        };
+        return (
+            s,
+            format!("no structure could be fitted on the fit part; the smallest is used ({s})"),
+        );
+    };
+    let (chosen, err) = scored
+        .iter()
+        .filter(|(_, r)| *r <= best * (1.0 + MARGIN))
+        .min_by_key(|(c, _)| {
+            let s = c.structure;
+            (s.n_params(), s.delay, s.na)
+        })
+        .map(|(c, r)| (c.structure, *r))
+        .expect("the best is within the margin of itself");
+    let reason = if err <= best {
+        format!(
+            "{chosen}: the lowest validation free-run RMSE ({err:.4e}) among {} structures fitted fully",
+            scored.len()
+        )
+    } else {
+        format!(
+            "{chosen}: validation free-run RMSE {err:.4e}, within {:.0}% of the lowest ({best:.4e}) with fewer \
+             parameters",
+            100.0 * MARGIN
+        )
+    };
+    (chosen, reason)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cand(na: usize, nb: usize, delay: usize, rmse: Option<f64>) -> StructureCandidate {
+        StructureCandidate {
+            structure: Structure { na, nb, delay },
+            arx_rmse: None,
+            model_rmse: rmse,
+            chosen: false,
+        }
+    }
+
+    #[test]
+    fn the_simplest_within_the_margin_wins() {
+        let c = [
+            cand(2, 1, 1, Some(1.0)),
+            cand(1, 0, 1, Some(1.009)),
+            cand(0, 0, 1, Some(1.02)),
+            cand(1, 0, 2, Some(1.005)),
+        ];
+        let (s, why) = decide(&c);
+        assert_eq!(
+            s,
+            Structure {
+                na: 1,
+                nb: 0,
+                delay: 1
+            }
+        );
+        assert!(why.contains("within 1%"), "{why}");
+        // Outside the margin the best wins.
+        let c = [cand(2, 1, 1, Some(1.0)), cand(1, 0, 1, Some(1.011))];
+        let (s, why) = decide(&c);
+        assert_eq!(
+            s,
+            Structure {
+                na: 2,
+                nb: 1,
+                delay: 1
+            }
+        );
+        assert!(why.contains("lowest"), "{why}");
+        // Same size: the shorter delay, then fewer a's.
+        let c = [
+            cand(1, 0, 3, Some(1.0)),
+            cand(0, 1, 2, Some(1.0)),
+            cand(1, 0, 2, Some(1.0)),
+        ];
+        assert_eq!(
+            decide(&c).0,
+            Structure {
+                na: 0,
+                nb: 1,
+                delay: 2
+            }
+        );
+        // Nothing fitted: the smallest structure, said so.
+        let (s, why) = decide(&[cand(1, 1, 1, None)]);
+        assert_eq!(
+            s,
+            Structure {
+                na: 0,
+                nb: 0,
+                delay: 1
+            }
+        );
+        assert!(why.contains("no structure"));
+    }
+
+    #[test]
+    fn the_grid_respects_the_bounds() {
+        let g = grid(10, 7000, 10_000);
+        assert_eq!(g.len(), 250);
+        // A tenth of the fit part bounds the delay; the record's length bounds the size.
+        assert!(grid(10, 30, 10_000).iter().all(|s| s.delay <= 3));
+        let small = grid(10, 105, 150);
+        assert!(small.iter().all(|s| min_samples(s) <= 150));
+        assert!(small.contains(&Structure {
+            na: 0,
+            nb: 0,
+            delay: 1
+        }));
+        assert!(!small.contains(&Structure {
+            na: 1,
+            nb: 1,
+            delay: 1
+        }));
+    }
+}
