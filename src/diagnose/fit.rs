@@ -83,11 +83,12 @@ pub enum FitError {
 }
 
 /// Residuals in `out` (cleared and refilled by the closure); `false` marks an invalid parameter vector.
-pub trait Residuals {
+/// `Sync`: the Jacobian's columns are evaluated on all cores.
+pub trait Residuals: Sync {
     fn eval(&self, theta: &[f64], out: &mut Vec<f64>) -> bool;
 }
 
-impl<F: Fn(&[f64], &mut Vec<f64>) -> bool> Residuals for F {
+impl<F: Fn(&[f64], &mut Vec<f64>) -> bool + Sync> Residuals for F {
     fn eval(&self, theta: &[f64], out: &mut Vec<f64>) -> bool {
         self(theta, out)
     }
@@ -216,35 +217,36 @@ fn jacobian<R: Residuals + ?Sized>(
     fd_rel: f64,
     jac: &mut [f64],
 ) -> usize {
+    use rayon::prelude::*;
     let n = r.len();
-    let mut trial = theta.to_vec();
-    let mut rt = Vec::with_capacity(n);
-    let mut evaluations = 0;
-    for (c, &j) in free.iter().enumerate() {
-        let h0 = fd_rel * (theta[j].abs() + typ[j].abs()).max(f64::MIN_POSITIVE);
-        let col = &mut jac[c * n..(c + 1) * n];
-        // Forward difference; if theta + h is not a valid model (theta sits on the edge of the valid
-        // region), the backward one; if neither, the parameter is locally inert.
-        let mut done = false;
-        for sign in [1.0, -1.0] {
-            trial.copy_from_slice(theta);
-            trial[j] += sign * h0;
-            let h = trial[j] - theta[j];
-            evaluations += 1;
-            if h != 0.0 && evaluate(f, &trial, &mut rt).is_some() && rt.len() == n {
-                // r = y - model: d r / d theta = (r(theta + h) - r(theta)) / h.
-                for i in 0..n {
-                    col[i] = (rt[i] - r[i]) / h;
+    // One column per task, each into its own slice: the result does not depend on the thread count.
+    jac[..n * free.len()]
+        .par_chunks_mut(n.max(1))
+        .zip(free.par_iter())
+        .map(|(col, &j)| {
+            let mut trial = theta.to_vec();
+            let mut rt = Vec::with_capacity(n);
+            let h0 = fd_rel * (theta[j].abs() + typ[j].abs()).max(f64::MIN_POSITIVE);
+            let mut evaluations = 0;
+            // Forward difference; if theta + h is not a valid model (theta sits on the edge of the valid
+            // region), the backward one; if neither, the parameter is locally inert.
+            for sign in [1.0, -1.0] {
+                trial.copy_from_slice(theta);
+                trial[j] += sign * h0;
+                let h = trial[j] - theta[j];
+                evaluations += 1;
+                if h != 0.0 && evaluate(f, &trial, &mut rt).is_some() && rt.len() == n {
+                    // r = y - model: d r / d theta = (r(theta + h) - r(theta)) / h.
+                    for i in 0..n {
+                        col[i] = (rt[i] - r[i]) / h;
+                    }
+                    return evaluations;
                 }
-                done = true;
-                break;
             }
-        }
-        if !done {
             col.iter_mut().for_each(|v| *v = 0.0);
-        }
-    }
-    evaluations
+            evaluations
+        })
+        .sum()
 }
 
 /// `J^T J` and `J^T r` of a column-major Jacobian with `q` columns.

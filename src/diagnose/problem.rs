@@ -4,6 +4,11 @@
 //! whole fit part (which, with the statistical stopping rule of [`super::fit`], takes a few iterations).
 
 use std::cell::RefCell;
+
+thread_local! {
+    /// Each thread's simulation buffers (fits evaluate Jacobian columns on all cores).
+    static SCRATCH: RefCell<Simulation> = RefCell::new(Simulation::default());
+}
 use std::time::Instant;
 
 use rand_chacha::ChaCha8Rng;
@@ -18,6 +23,13 @@ use crate::stats::std_dev;
 
 /// Exploration (screening grids of starts, short runs) uses at most this many samples of the fit part.
 pub const EXPLORE_SAMPLES: usize = 20_000;
+
+/// Iterations of the refinement on the whole fit part after exploring on a shorter window.
+pub const POLISH_ITER: usize = 6;
+
+/// The refinement gives up on a step once the damping passes this (near the optimum a step that needs more
+/// damping moves nothing that matters; each rejected step costs a simulation of the whole fit part).
+pub const POLISH_LAMBDA_MAX: f64 = 1e2;
 
 /// With more starts than this, a fit ranks them by cost and refines only this many.
 const SCREEN_KEEP: usize = 6;
@@ -71,6 +83,26 @@ impl<'a> Problem<'a> {
             time_scale: n_fit as f64,
             ..self.clone()
         }
+    }
+
+    /// The settings of the refinement on the whole fit part: when exploration ran on a shorter window, the
+    /// start is already near the optimum and at most [`POLISH_ITER`] iterations refine it (each costs a few
+    /// simulations of the whole fit part).
+    fn polish(&self) -> LmOptions {
+        if self.windowed() {
+            LmOptions {
+                max_iter: self.lm.max_iter.min(POLISH_ITER),
+                lambda_max: self.lm.lambda_max.min(POLISH_LAMBDA_MAX),
+                ..self.lm
+            }
+        } else {
+            self.lm
+        }
+    }
+
+    /// Is exploration on a window shorter than the fit part?
+    pub fn windowed(&self) -> bool {
+        self.n_explore < self.n_fit
     }
 
     pub fn out_of_time(&self) -> bool {
@@ -153,16 +185,14 @@ impl<'a> Problem<'a> {
     /// best on the whole fit part.
     fn fit_packed(
         &self,
-        unpack: &dyn Fn(&[f64]) -> Model,
+        unpack: &(dyn Fn(&[f64]) -> Model + Sync),
         starts: &[Vec<f64>],
         typ: &[f64],
         obj: Objective,
     ) -> Option<(Vec<f64>, f64)> {
-        let scratch = RefCell::new(Simulation::default());
         let on = |n: usize| {
-            let scratch = &scratch;
             move |th: &[f64], out: &mut Vec<f64>| {
-                self.residuals(&unpack(th), obj, n, &mut scratch.borrow_mut(), out)
+                SCRATCH.with_borrow_mut(|scratch| self.residuals(&unpack(th), obj, n, scratch, out))
             }
         };
         let window = on(self.n_explore);
@@ -203,23 +233,17 @@ impl<'a> Problem<'a> {
         } else {
             kept.first()?.to_vec()
         };
-        let fit = levenberg_marquardt(&on(self.n_fit), &start, typ, &[], &self.lm).ok()?;
+        let fit = levenberg_marquardt(&on(self.n_fit), &start, typ, &[], &self.polish()).ok()?;
         Some((fit.theta, fit.cost))
     }
 
     /// Covariance of the plain model's parameters at `m` (its fit-part information matrix).
     pub fn plain_covariance(&self, m: &BaseModel) -> Option<nalgebra::DMatrix<f64>> {
         let template = Model::plain(m.clone());
-        let scratch = RefCell::new(Simulation::default());
         let f = |th: &[f64], out: &mut Vec<f64>| {
             let mm = template.unpack(th, self.time_scale);
-            self.residuals(
-                &mm,
-                Objective::Simulation,
-                self.n_fit,
-                &mut scratch.borrow_mut(),
-                out,
-            )
+            SCRATCH
+                .with_borrow_mut(|s| self.residuals(&mm, Objective::Simulation, self.n_fit, s, out))
         };
         covariance(
             &f,
@@ -447,11 +471,28 @@ pub(crate) fn fit_plain(
                 }
             })
             .collect();
-        if let Some((m, c)) = p.fit(
-            &best,
-            &[best.unpack(&th, p.time_scale)],
-            Objective::Simulation,
-        ) && c < cost
+        let start = best.unpack(&th, p.time_scale);
+        if p.windowed() {
+            // On a long record a restart is explored on the window and refined only if it beats the best
+            // there.
+            let window = p.shortened(p.n_explore);
+            let (Some((m, c)), Some(c_best)) = (
+                window.fit(&best, std::slice::from_ref(&start), Objective::Simulation),
+                window.cost(&best, Objective::Simulation),
+            ) else {
+                continue;
+            };
+            if c >= c_best {
+                continue;
+            }
+            if let Some((m, c)) = p.fit(&best, &[m], Objective::Simulation)
+                && c < cost
+            {
+                best = m;
+                cost = c;
+            }
+        } else if let Some((m, c)) = p.fit(&best, &[start], Objective::Simulation)
+            && c < cost
         {
             best = m;
             cost = c;
