@@ -43,8 +43,10 @@ enum Command {
 enum IdentifyCommand {
     /// Recursive MRGIA estimator of paper 000 (the same code as MrgiaEstimator.fmu).
     Mrgia(identify::MrgiaArgs),
-    /// Frequency identification of paper 003 from one sine experiment (u = U cos(w t)).
+    /// Frequency identification of paper 003 from one sine experiment (u = U cos(w t)), with its window and verdict.
     Frequency(frequency::IdentifyFrequencyArgs),
+    /// Every step of a stepped-sine record (several frequencies one after another): Bode points and borders.
+    SteppedSine(frequency::SteppedSineArgs),
     /// Output-error (prediction-error) refinement from MRGIA's estimate, with standard errors.
     Oe(oe::OeArgs),
 }
@@ -55,6 +57,7 @@ fn main() {
         Command::Simulate(a) => simulate::run(a),
         Command::Identify(IdentifyCommand::Mrgia(a)) => identify::run_mrgia(a),
         Command::Identify(IdentifyCommand::Frequency(a)) => frequency::run_identify(a),
+        Command::Identify(IdentifyCommand::SteppedSine(a)) => frequency::run_stepped_sine(a),
         Command::Experiment(a) => frequency::run_experiment(a),
         Command::Identify(IdentifyCommand::Oe(a)) => oe::run_oe(a),
         Command::Crb(a) => oe::run_crb(a),

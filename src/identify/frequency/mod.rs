@@ -51,8 +51,11 @@
 //! differs from the model's by the factor `(sum |d_i|^(n/i))^(1/n)` of the normalised model).
 //! [`FrequencyEstimate::dual`] converts an estimate to the other member of the pair.
 
+pub mod analysis;
+pub mod experiment;
 mod fit;
 mod fold;
+pub mod window;
 
 #[cfg(test)]
 mod tests;
@@ -135,6 +138,15 @@ pub struct FrequencyEstimate {
     pub residual_rms: f64,
     /// Estimated noise standard deviation of one sample of `y`.
     pub noise_std: f64,
+    /// `sum_j count_j (w_j - model_j)^2 / sigma^2` over `I_N`: the cost (22) in units of the noise variance
+    /// (with a floor of 1e-12 of the output's size under `sigma` for noise-free records).
+    pub chi2: f64,
+    /// Degrees of freedom of `chi2`: bins in `I_N` minus the fitted parameters.
+    pub dof: f64,
+    /// Samples averaged into the bins of `I_N`.
+    pub samples_averaged: f64,
+    /// Parameters fitted: `alpha`, `delta`, the phase and one stage length per constant stage.
+    pub parameters: usize,
     /// Amplitude and phase `U'`, `phi_u` of the input fitted as `U' cos(omega t - phi_u)`, if given.
     pub input_amplitude: Option<f64>,
     pub input_phase: Option<f64>,
@@ -214,6 +226,52 @@ pub enum FrequencyError {
          eqs. (35)-(37) is undefined: raise the amplitude U"
     )]
     FlatAscending,
+    #[error(
+        "the record holds {} steps of a steady sine, at omega = {} rad/s: choose one (its omega, or the \
+         start and end of its window), or identify every step as a stepped-sine record",
+        .omegas.len(), list(.omegas)
+    )]
+    SeveralSteps { omegas: Vec<f64> },
+    #[error(
+        "no steady part of the input is a sine at omega = {omega} rad/s (within {tolerance} %); the steady \
+         steps found are at omega = {} rad/s",
+        if .found.is_empty() { "(none)".to_string() } else { list(.found) }
+    )]
+    NoStepAt {
+        omega: f64,
+        tolerance: f64,
+        found: Vec<f64>,
+    },
+    #[error(
+        "the input has fewer than two cycles between t = {start} and t = {end} s, so its frequency cannot \
+         be found: give omega"
+    )]
+    NoFrequency { start: f64, end: f64 },
+    #[error("{name} must be given: {why}")]
+    Missing {
+        name: &'static str,
+        why: &'static str,
+    },
+    #[error(
+        "the window from t = {start} to t = {end} s holds {samples} samples; at least 3 are needed"
+    )]
+    EmptyWindow {
+        start: f64,
+        end: f64,
+        samples: usize,
+    },
+    #[error(
+        "no steady sine step was found in the input (a step is at least 2 cycles of constant frequency and amplitude)"
+    )]
+    NoSteps,
+}
+
+/// `a, b, c` with four significant digits.
+fn list(v: &[f64]) -> String {
+    v.iter()
+        .map(|x| format!("{x:.4}"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Normalise a model `(gain, f_a, f_d)` as in eqs. (29)-(30a): the rescaled model `(G/K, F[K x])` with
@@ -344,7 +402,7 @@ fn check_inputs(rec: &SineRecord, opts: &FrequencyOptions) -> Result<(), Frequen
         );
     }
     if opts.degree < 1 || opts.degree > MAX_DEGREE {
-        return bad("degree", opts.degree as f64, "must be in 1..=6");
+        return bad("degree", opts.degree as f64, "must be between 1 and 6");
     }
     if let Some(t) = opts.transient
         && !(t.is_finite() && t >= 0.0)
@@ -382,37 +440,6 @@ fn check_inputs(rec: &SineRecord, opts: &FrequencyOptions) -> Result<(), Frequen
     Ok(())
 }
 
-/// Fit `u = A cos(omega t) + B sin(omega t)`: amplitude, phase `phi_u` (so `u = U' cos(omega t - phi_u)`)
-/// and RMS residual.
-fn fit_input(t: &[f64], u: &[f64], omega: f64) -> (f64, f64, f64) {
-    let (mut cc, mut cs, mut ss, mut uc, mut us) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for (&ti, &ui) in t.iter().zip(u) {
-        let (s, c) = (omega * ti).sin_cos();
-        cc += c * c;
-        cs += c * s;
-        ss += s * s;
-        uc += ui * c;
-        us += ui * s;
-    }
-    let det = cc * ss - cs * cs;
-    let (a, b) = if det.abs() > 1e-12 * (cc * ss).max(f64::MIN_POSITIVE) {
-        ((uc * ss - us * cs) / det, (us * cc - uc * cs) / det)
-    } else {
-        (0.0, 0.0)
-    };
-    let res = (t
-        .iter()
-        .zip(u)
-        .map(|(&ti, &ui)| {
-            let (s, c) = (omega * ti).sin_cos();
-            (ui - a * c - b * s).powi(2)
-        })
-        .sum::<f64>()
-        / t.len() as f64)
-        .sqrt();
-    (a.hypot(b), b.atan2(a), res)
-}
-
 /// A candidate optimisation set: bins excluded as constant stages, and the phase bracket of (23a).
 struct Candidate {
     runs: Vec<Run>,
@@ -434,7 +461,8 @@ pub fn estimate(
     // 1. Phase reference.
     let (input_amplitude, input_phase) = match rec.u {
         Some(u) => {
-            let (amp, ph, res) = fit_input(rec.time, u, omega);
+            let fit = window::fit_sine(rec.time, u, omega, false);
+            let (amp, ph, res) = (fit.amplitude, fit.phase, fit.residual);
             if !(amp.is_finite() && amp > 0.0) || res > 0.1 * amp {
                 return Err(FrequencyError::InputNotSine {
                     omega,
@@ -613,6 +641,7 @@ pub fn estimate(
         .map(|j| folded.count[j])
         .sum();
     let residual_rms = (fit.cost() / included_samples).sqrt();
+    let (chi2, dof) = score(fit.cost(), pb.included());
 
     // Stage lengths: a run that holds the start of the descending (ascending) half.
     let mut tau_a = 0.0;
@@ -646,6 +675,10 @@ pub fn estimate(
         samples_per_period: folded.bins,
         residual_rms,
         noise_std: folded.sigma,
+        chi2,
+        dof,
+        samples_averaged: included_samples,
+        parameters: 2 * p + 1 + runs.len(),
         input_amplitude,
         input_phase,
         warnings,
