@@ -580,3 +580,57 @@ fn one_gigabyte_file_in_bounded_memory() {
         r.peak_kib
     );
 }
+
+/// Run `args` with stdout read for one byte and then closed, as `backlash ... | head -c 1` does: the
+/// command must end without a panic report, whatever it was printing.
+fn closed_reader(args: &[&str]) -> (Option<i32>, String) {
+    use std::io::Read;
+    let mut child = Command::new(BIN)
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = child.stdout.take().unwrap();
+    let mut one = [0u8; 1];
+    let _ = out.read(&mut one);
+    drop(out);
+    let output = child.wait_with_output().unwrap();
+    (
+        output.status.code(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn a_closed_reader_is_no_panic_for_any_command() {
+    let dir = TempDir::new("closed");
+    // Integer counts, 150 samples: the record shape that once hung diagnose.
+    let mut csv = String::from("time,u,y\n");
+    for k in 0..150 {
+        let u = if (k / 25) % 2 == 0 { 1947 } else { 2047 };
+        let y = u - 5 + (k * 7 % 11) as i64;
+        csv.push_str(&format!("{k},{u},{y}\n"));
+    }
+    let f = dir.file("counts.csv", csv.as_bytes());
+    let f = f.to_str().unwrap();
+    let runs: Vec<Vec<&str>> = vec![
+        vec!["study", "--list-plants"],
+        vec!["diagnose", f, "--json"],
+        vec!["diagnose", f],
+        vec!["identify", "oe", f, "--json"],
+        vec![
+            "identify", "mrgia", f, "--na", "1", "--nb", "0", "--delay", "1", "--json",
+        ],
+        vec!["simulate", f],
+        vec!["--help"],
+    ];
+    for args in runs {
+        let (code, stderr) = closed_reader(&args);
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert!(
+            code == Some(0) || code == Some(1),
+            "{args:?}: {code:?} {stderr}"
+        );
+    }
+}

@@ -51,7 +51,27 @@ enum IdentifyCommand {
     Oe(oe::OeArgs),
 }
 
+/// A reader that closes the pipe early (`backlash ... | head -1`) is no error: `println!` panics on a closed
+/// stdout, and that one panic ends the process quietly with status 0 (the reader wanted no more); every other
+/// panic keeps the default report. One place for every command.
+fn quiet_on_closed_stdout() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let payload = info.payload();
+        let msg = payload
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| payload.downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if msg.starts_with("failed printing to stdout") && msg.contains("Broken pipe") {
+            std::process::exit(0);
+        }
+        default(info);
+    }));
+}
+
 fn main() {
+    quiet_on_closed_stdout();
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Simulate(a) => simulate::run(a),
