@@ -158,6 +158,35 @@ mod tests {
     }
 
     #[test]
+    fn the_fall_is_relative_to_the_error_before_and_the_reason_quotes_both() {
+        // 2.0 -> 1.9 is a 5% fall: supported, and said so.
+        let e = Evidence {
+            before: 2.0,
+            ..ev(1.9, 3.0, -5.0)
+        };
+        let j = judge(&e);
+        assert!(j.supported, "{}", j.reason);
+        assert!(j.reason.contains("falls by 5.0%"), "{}", j.reason);
+        // 2.0 -> 1.99 is 0.5%: too small, whatever the scale.
+        let small = judge(&Evidence {
+            before: 2.0,
+            ..ev(1.99, 3.0, -5.0)
+        });
+        assert!(
+            !small.supported && small.reason.contains("only 0.50%"),
+            "{}",
+            small.reason
+        );
+        // A rise quotes both errors.
+        let rise = judge(&ev(1.2, 3.0, -5.0));
+        assert!(
+            rise.reason.contains("(1.0000e0 -> 1.2000e0)"),
+            "{}",
+            rise.reason
+        );
+    }
+
+    #[test]
     fn penalties_are_the_log_counts() {
         assert_eq!(structure_penalty(EffectId::ExtraDelay), 3f64.ln());
         assert_eq!(structure_penalty(EffectId::LinearOrder), 2f64.ln());

@@ -145,6 +145,17 @@ mod tests {
     }
 
     #[test]
+    fn diebold_mariano_by_hand_on_two_pairs_and_on_equal_errors() {
+        // d = [1, 4], mean 2.5, centred [-1.5, 1.5]; one lag (floor of the cube root of 2), Bartlett weight
+        // 1/2: v = 2.25 + 2 (1/2) (-1.125) = 1.125, z = 2.5 / sqrt(1.125 / 2) = 10/3.
+        let z = diebold_mariano(&[1.0, 2.0], &[0.0, 0.0]);
+        assert!((z - 10.0 / 3.0).abs() < 1e-12, "{z}");
+        // Identical errors are no evidence either way.
+        let (e0, _) = pair(50);
+        assert_eq!(diebold_mariano(&e0, &e0), 0.0);
+    }
+
+    #[test]
     fn ar_ls_matches_statsmodels_autoreg() {
         let (e0, _) = pair(300);
         let phi = ar_ls(&e0, 2).unwrap();
@@ -175,6 +186,17 @@ mod tests {
             })
             .collect();
         assert!(input_line_ratio(&noise, w) < INPUT_LINE_RATIO);
+        // Far from the input's line the ratio is small: only ordinates within one Fourier spacing count.
+        assert!(input_line_ratio(&periodic, 2.0) < 1.0);
+        // Eight samples are enough to see a line; seven are not looked at.
+        let quarter: Vec<f64> = (0..8)
+            .map(|k| (std::f64::consts::FRAC_PI_2 * k as f64).sin())
+            .collect();
+        assert!(input_line_ratio(&quarter, std::f64::consts::FRAC_PI_2) > 1.0);
+        assert_eq!(
+            input_line_ratio(&quarter[..7], std::f64::consts::FRAC_PI_2),
+            0.0
+        );
         assert_eq!(input_line_ratio(&[2.0; 100], w), 0.0);
         assert_eq!(input_line_ratio(&[1.0; 4], w), 0.0);
     }
