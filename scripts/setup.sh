@@ -21,3 +21,10 @@ if [ ! -x .venv/bin/python ]; then
     python3 -m venv .venv
 fi
 .venv/bin/python -m pip install -q --disable-pip-version-check -r tests/python/requirements.txt
+
+# The portable FMU binary (linked against GLIBC 2.17, so that it loads on old Linux): zig and cargo-zigbuild
+# from PyPI, in the venv, where build.rs looks for them. Without them `cargo build --release` still packages the
+# FMUs, linked against this machine's GLIBC, and warns.
+if ! .venv/bin/python -m pip install -q --disable-pip-version-check ziglang==0.17.1 cargo-zigbuild==0.24.1; then
+    echo "warning: could not install ziglang and cargo-zigbuild: the FMUs' binary will need this machine's GLIBC" >&2
+fi
