@@ -1423,9 +1423,11 @@ impl Fuzzer {
                 }),
             }
         } else {
+            // (Overwriting a state another instance issued is refused, whatever the bytes.)
             if what == What::Intact(kind)
                 && !tp.is_null()
                 && Call::DeSerializeFmuState.allowed_in(state)
+                && overwrite.is_none_or(|j| self.states[j].owner == c)
             {
                 // A state this FMU serialised deserialises again wherever the call is legal.
                 self.stats.own_state_refused[kind.idx()] += 1;

@@ -418,7 +418,7 @@ impl Instance {
 
     /// Sample instant t_j.
     fn instant(&self, j: u64) -> f64 {
-        self.layer.start_time + j as f64 * self.slave.sample_period()
+        self.layer.start_time + self.offset(j)
     }
 
     pub fn set_debug_logging(&mut self, on: bool, categories: &[String]) -> Result<(), String> {
@@ -691,6 +691,11 @@ impl Instance {
         if !end.is_finite() {
             return Err(format!("the step would end at {end}, which is not finite"));
         }
+        if end <= t {
+            return Err(format!(
+                "communicationStepSize {h} is below the resolution of the time {t} (t + h = t)"
+            ));
+        }
         if let Some(stop) = self.layer.stop_time
             && end > stop + time_tolerance(stop, ts)
         {
@@ -719,9 +724,12 @@ impl Instance {
             StepOutcome::Cut { at, reached, limit }
         } else {
             self.layer.time = end;
-            let last = self.instant(self.layer.samples);
+            let (last, since) = (
+                self.instant(self.layer.samples),
+                (end - self.layer.start_time) - self.offset(self.layer.samples),
+            );
             // A step ending past its last instant has held the inputs there: they are that sample's.
-            if n > 0 && end - last > instant_tolerance(last, ts, h) {
+            if n > 0 && since > instant_tolerance(last, ts, h) {
                 self.latch_inputs();
             }
             StepOutcome::Complete
@@ -731,22 +739,34 @@ impl Instance {
     }
 
     /// How many instants after t_k a step of size `h` ending at `end` reaches (an instant within
-    /// [`instant_tolerance`] of the end counts as reached).
+    /// [`instant_tolerance`] of the end counts as reached). Offsets from the start time are compared, so that
+    /// a start time far larger than Ts does not swallow the instants.
     fn instants_reached(&self, end: f64, h: f64) -> u64 {
         let (ts, k) = (self.slave.sample_period(), self.layer.samples);
+        let since_start = end - self.layer.start_time;
         let reaches = |j: u64| {
             let at = self.instant(j);
-            at - instant_tolerance(at, ts, h) <= end
+            self.offset(j) - instant_tolerance(at, ts, h) <= since_start
         };
-        // The estimate is within one or two of the answer (the tolerance is below Ts / 4); `as` saturates.
-        let mut j = (((end - self.layer.start_time) / ts).floor().max(0.0) as u64).max(k);
-        while j < u64::MAX && reaches(j + 1) {
-            j += 1;
-        }
-        while j > k && !reaches(j) {
-            j -= 1;
+        // The estimate is within one or two of the answer (the tolerance is below Ts / 4), unless the sample
+        // count is beyond what a float resolves (2^53), where a few adjustments are as good as any; `as`
+        // saturates.
+        let mut j = ((since_start / ts).floor().max(0.0) as u64).max(k);
+        for _ in 0..4 {
+            if j < u64::MAX && reaches(j + 1) {
+                j += 1;
+            } else if j > k && !reaches(j) {
+                j -= 1;
+            } else {
+                break;
+            }
         }
         j - k
+    }
+
+    /// Time from the start to instant t_j.
+    fn offset(&self, j: u64) -> f64 {
+        j as f64 * self.slave.sample_period()
     }
 
     /// Latch the inputs' current values as those of the instant the clock stands at.
