@@ -1054,8 +1054,8 @@ fn non_finite_inputs_and_parameters_are_refused_with_a_log_line() {
             (f64::NEG_INFINITY, 1.0),
             (0.0, -1.0),
             (0.0, 0.0),
-            (0.0, 0.5),
             (3.0, 1.0),
+            (0.5, 1.0),
         ] {
             let f = drive(kind, Reach::StepComplete, "step");
             assert_eq!(

@@ -397,18 +397,13 @@ impl Instance {
         if call.allowed_in(self.layer.state) {
             return Ok(());
         }
-        let mut reason = format!(
+        // After fmi2Error the standard allows only the getters, the FMU-state functions, fmi2Reset and
+        // fmi2FreeInstance (state.rs), so fmi2Terminate after an error is refused too.
+        Err(format!(
             "illegal call in state '{}' of instance '{}'",
             self.layer.state.name(),
             self.name.to_string_lossy()
-        );
-        if self.layer.state == State::Error {
-            reason.push_str(
-                " (an earlier call returned fmi2Error; the standard then allows only the getters, \
-                 fmi2GetFMUstate, fmi2SetFMUstate, fmi2Reset and fmi2FreeInstance)",
-            );
-        }
-        Err(reason)
+        ))
     }
 
     /// The instance's clock: the start time, then the end of the last step (see [`LayerState`]).
@@ -850,31 +845,32 @@ impl Instance {
             self.issued.push(p);
             return Ok(p);
         }
-        self.check_issued(existing)?;
-        // SAFETY: `existing` is in the registry: a live Box this instance made and has not freed.
-        unsafe { *existing = saved };
-        Ok(existing)
+        let q = self.find_issued(existing)?;
+        // SAFETY: `q` comes from the registry: a live Box this instance made and has not freed.
+        unsafe { *q = saved };
+        Ok(q)
     }
 
     /// The state behind `p` if this instance issued it and has not freed it.
     pub fn issued_state(&self, p: *const SavedState) -> Result<&SavedState, String> {
-        self.check_issued(p)?;
-        // SAFETY: `p` is in the registry: a live Box this instance made; it lives as long as `self` holds it.
-        Ok(unsafe { &*p })
+        let q = self.find_issued(p)?;
+        // SAFETY: `q` comes from the registry: a live Box this instance made; it lives while `self` holds it.
+        Ok(unsafe { &*q })
     }
 
     /// Free a state this instance issued.
     pub fn free_state(&mut self, p: *mut SavedState) -> Result<(), String> {
-        self.check_issued(p)?;
-        self.issued.retain(|&q| q != p);
-        // SAFETY: `p` was in the registry (a live Box from `issue_state`) and is now out of it: freed once.
-        drop(unsafe { Box::from_raw(p) });
+        let q = self.find_issued(p)?;
+        self.issued.retain(|&r| r != q);
+        // SAFETY: `q` was in the registry (a live Box from `issue_state`) and is now out of it: freed once.
+        drop(unsafe { Box::from_raw(q) });
         Ok(())
     }
 
-    fn check_issued(&self, p: *const SavedState) -> Result<(), String> {
-        if self.issued.iter().any(|&q| std::ptr::eq(q, p)) {
-            Ok(())
+    /// The registry's entry equal to `p`: pointers are compared, never read through.
+    fn find_issued(&self, p: *const SavedState) -> Result<*mut SavedState, String> {
+        if let Some(&q) = self.issued.iter().find(|&&q| std::ptr::eq(q, p)) {
+            Ok(q)
         } else {
             Err(format!(
                 "FMUstate {p:p} is not a state this instance issued (or it was freed): pass the fmi2FMUstate \
