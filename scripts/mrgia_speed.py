@@ -2,7 +2,7 @@
 """`backlash identify mrgia` against a straightforward NumPy MRGIA (tests/python/mrgia_reference.py) on a
 200,000-sample record of the paper 000 example (SNR 43).
 
-    /work/main/.venv/bin/python scripts/mrgia_speed.py [--samples 200000] [--repeats 5] [--numpy-samples 20000]
+    .venv/bin/python scripts/mrgia_speed.py [--samples 200000] [--repeats 5] [--numpy-samples 20000]
 
 The CLI is timed end to end as a user runs it (process start, CSV parsing, the estimator, JSON output), median
 of --repeats runs. The NumPy implementation (one Python iteration per sample on NumPy arrays) is timed on the
