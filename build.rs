@@ -3,7 +3,9 @@
 //! 1. Reads and checks modelDescription/<Model>.xml and generates `$OUT_DIR/model_descriptions.rs`
 //!    (identity, variable table, one enum variant per variable) for `src/fmus`.
 //! 2. In release builds, packages `target/fmu/<Model>.fmu` (see build/package.rs). Set `BACKLASH_FMU=never`
-//!    to skip packaging, `BACKLASH_FMU=always` to package in debug builds too.
+//!    to skip packaging, `BACKLASH_FMU=always` to package in debug builds too. On Linux the binary is the
+//!    portable GLIBC 2.17 build when cargo-zigbuild is installed (`BACKLASH_FMU_PORTABLE=never` skips it,
+//!    `=require` fails without it); without it the build warns.
 
 #[path = "build/model_description.rs"]
 mod model_description;
@@ -61,10 +63,20 @@ fn main() {
     println!("cargo:rerun-if-changed=src");
     println!("cargo:rerun-if-changed=Cargo.toml");
     println!("cargo:rerun-if-changed=Cargo.lock");
+    println!("cargo:rerun-if-env-changed=BACKLASH_FMU_PORTABLE");
     let target = package::target_dir(&out_dir);
-    let lib = package::build_cdylib(&manifest_dir, &target).unwrap_or_else(|e| fail(&e));
+    let platform = package::Platform::of_build().unwrap_or_else(|e| fail(&e));
+    let (lib, portability) =
+        package::build_cdylib(&manifest_dir, &target, &platform).unwrap_or_else(|e| fail(&e));
+    if let package::Portability::Unavailable(why) = portability {
+        println!(
+            "cargo:warning=the FMUs' binary is linked against this machine's GLIBC, not 2.17, and may not load \
+             on older Linux: {why}"
+        );
+    }
     for (stem, text) in &texts {
-        package::write_fmu(&target.join("fmu"), stem, text, &lib).unwrap_or_else(|e| fail(&e));
+        package::write_fmu(&target.join("fmu"), stem, text, &lib, &platform)
+            .unwrap_or_else(|e| fail(&e));
     }
 }
 

@@ -37,47 +37,193 @@ pub fn target_dir(out_dir: &Path) -> PathBuf {
     t
 }
 
-/// Build the cdylib with a nested cargo and return the path of the shared library.
-pub fn build_cdylib(manifest_dir: &Path, target: &Path) -> Result<PathBuf, String> {
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let nested_target = target.join("fmu-build");
-    let mut cmd = Command::new(cargo);
-    cmd.arg("build")
-        .arg("--release")
+/// Where the FMU standard puts a platform's binary, from the target cargo builds for.
+pub struct Platform {
+    /// The target triple (`TARGET`).
+    pub triple: String,
+    /// The FMU's platform folder: linux64, win64, darwin64 (or the 32-bit ones).
+    pub folder: String,
+    /// File name of the cdylib cargo writes, and the extension the FMU's binary takes.
+    pub cdylib: String,
+    pub extension: &'static str,
+    /// Linux with the GNU C library: the portable build links against GLIBC 2.17 there.
+    pub glibc: bool,
+}
+
+impl Platform {
+    /// The platform of the current build (build-script environment).
+    pub fn of_build() -> Result<Self, String> {
+        let var = |n: &str| std::env::var(n).map_err(|_| format!("cargo did not set {n}"));
+        let (os, bits) = (
+            var("CARGO_CFG_TARGET_OS")?,
+            var("CARGO_CFG_TARGET_POINTER_WIDTH")?,
+        );
+        let env = std::env::var("CARGO_CFG_TARGET_ENV").unwrap_or_default();
+        let (folder, prefix, extension) = match os.as_str() {
+            "linux" => ("linux", "lib", "so"),
+            "windows" => ("win", "", "dll"),
+            "macos" => ("darwin", "lib", "dylib"),
+            other => {
+                return Err(format!(
+                    "the FMI 2.0 standard has no platform folder for {other}"
+                ));
+            }
+        };
+        Ok(Self {
+            triple: var("TARGET")?,
+            folder: format!("{folder}{bits}"),
+            cdylib: format!("{prefix}backlash.{extension}"),
+            extension,
+            glibc: os == "linux" && env == "gnu",
+        })
+    }
+}
+
+/// `cargo-zigbuild`, if installed: on PATH or in this checkout's `.venv` (where scripts/setup.sh puts it).
+fn zigbuild(manifest_dir: &Path) -> Option<PathBuf> {
+    let venv = manifest_dir
+        .join(".venv")
+        .join("bin")
+        .join("cargo-zigbuild");
+    if venv.is_file() {
+        return Some(venv);
+    }
+    let path = std::env::var_os("PATH")?;
+    std::env::split_paths(&path)
+        .map(|d| d.join("cargo-zigbuild"))
+        .find(|p| p.is_file())
+}
+
+/// The nested `cargo build` (or `cargo-zigbuild zigbuild`) of the library alone.
+fn nested(
+    program: &Path,
+    sub: &str,
+    manifest_dir: &Path,
+    target_dir: &Path,
+    triple: &str,
+) -> Command {
+    let mut cmd = Command::new(program);
+    cmd.arg(sub)
+        .arg("--profile")
+        .arg("fmu")
         .arg("--lib")
         .arg("--manifest-path")
         .arg(manifest_dir.join("Cargo.toml"))
         .arg("--target-dir")
-        .arg(&nested_target)
+        .arg(target_dir)
+        .arg("--target")
+        .arg(triple)
         .env("BACKLASH_FMU_NESTED", "1")
         // The outer cargo's jobserver is not shared: the nested build runs with its own job count.
         .env_remove("MAKEFLAGS")
         .env_remove("CARGO_MAKEFLAGS")
-        .env_remove("MFLAGS");
+        .env_remove("MFLAGS")
+        // Flags meant for the outer build (a host-only linker, coverage) do not apply to the FMU binary.
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("RUSTFLAGS");
     if std::env::var_os("CARGO_NET_OFFLINE").is_some() {
         cmd.arg("--offline");
     }
+    cmd
+}
+
+fn run(mut cmd: Command, what: &str) -> Result<(), String> {
     let status = cmd
         .status()
-        .map_err(|e| format!("cannot start the nested cargo: {e}"))?;
-    if !status.success() {
-        return Err(format!(
-            "the nested cargo build of the FMU binary failed ({status})"
-        ));
+        .map_err(|e| format!("cannot start {what}: {e}"))?;
+    if status.success() {
+        Ok(())
+    } else {
+        Err(format!("{what} of the FMU binary failed ({status})"))
     }
-    let lib = nested_target.join("release").join("libbacklash.so");
+}
+
+/// How the FMU binary was built: whether it is the portable (GLIBC 2.17) build, and if not, why.
+pub enum Portability {
+    Portable,
+    NotApplicable,
+    Unavailable(String),
+}
+
+/// Build the cdylib with a nested cargo and return the path of the shared library. On Linux with glibc the
+/// binary is linked against GLIBC 2.17 with `cargo-zigbuild` (and zig) when they are installed, so that it
+/// loads on old distributions; otherwise with this machine's C library, and the caller warns.
+/// `BACKLASH_FMU_PORTABLE=never` skips the portable build, `=require` fails without it.
+pub fn build_cdylib(
+    manifest_dir: &Path,
+    target: &Path,
+    platform: &Platform,
+) -> Result<(PathBuf, Portability), String> {
+    let cargo = PathBuf::from(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    let nested_target = target.join("fmu-build");
+    let mode = std::env::var("BACKLASH_FMU_PORTABLE").unwrap_or_default();
+    let lib_in = |dir: &str| nested_target.join(dir).join("fmu").join(&platform.cdylib);
+    let zig = zigbuild(manifest_dir).filter(|_| platform.glibc && mode != "never");
+    let portability = if let Some(zig) = zig {
+        let glibc_target = format!("{}.2.17", platform.triple);
+        let mut cmd = nested(
+            &zig,
+            "zigbuild",
+            manifest_dir,
+            &nested_target,
+            &glibc_target,
+        );
+        // cargo-zigbuild runs `cargo`, and finds zig as `python3 -m ziglang` next to itself (the venv's).
+        let mut path = vec![cargo.parent().map(Path::to_path_buf).unwrap_or_default()];
+        path.extend(zig.parent().map(Path::to_path_buf));
+        path.extend(std::env::split_paths(
+            &std::env::var_os("PATH").unwrap_or_default(),
+        ));
+        cmd.env(
+            "PATH",
+            std::env::join_paths(path).map_err(|e| e.to_string())?,
+        );
+        match run(cmd, "cargo-zigbuild (the portable GLIBC 2.17 build)") {
+            Ok(()) => Portability::Portable,
+            Err(e) if mode == "require" => return Err(e),
+            Err(e) => Portability::Unavailable(e),
+        }
+    } else if !platform.glibc {
+        Portability::NotApplicable
+    } else if mode == "require" {
+        return Err(
+            "BACKLASH_FMU_PORTABLE=require, but cargo-zigbuild is not installed \
+                    (bash scripts/setup.sh installs it)"
+                .into(),
+        );
+    } else if mode == "never" {
+        Portability::Unavailable("BACKLASH_FMU_PORTABLE=never".into())
+    } else {
+        Portability::Unavailable(
+            "cargo-zigbuild is not installed (bash scripts/setup.sh installs it with zig)".into(),
+        )
+    };
+    let lib = if matches!(portability, Portability::Portable) {
+        lib_in(&platform.triple)
+    } else {
+        let cmd = nested(
+            &cargo,
+            "build",
+            manifest_dir,
+            &nested_target,
+            &platform.triple,
+        );
+        run(cmd, "the nested cargo build")?;
+        lib_in(&platform.triple)
+    };
     if !lib.exists() {
         return Err(format!("the nested build did not leave {}", lib.display()));
     }
-    Ok(lib)
+    Ok((lib, portability))
 }
 
-/// Write `<fmu_dir>/<id>.fmu` with binaries/linux64/<id>.so and modelDescription.xml.
+/// Write `<fmu_dir>/<id>.fmu` with binaries/<platform>/<id>.<ext> and modelDescription.xml.
 pub fn write_fmu(
     fmu_dir: &Path,
     id: &str,
     model_description: &str,
     lib: &Path,
+    platform: &Platform,
 ) -> Result<PathBuf, String> {
     std::fs::create_dir_all(fmu_dir).map_err(|e| format!("{}: {e}", fmu_dir.display()))?;
     let path = fmu_dir.join(format!("{id}.fmu"));
@@ -91,9 +237,9 @@ pub fn write_fmu(
         zip.start_file("modelDescription.xml", opts)?;
         zip.write_all(model_description.as_bytes())?;
         zip.add_directory("binaries/", opts)?;
-        zip.add_directory("binaries/linux64/", opts)?;
+        zip.add_directory(format!("binaries/{}/", platform.folder), opts)?;
         zip.start_file(
-            format!("binaries/linux64/{id}.so"),
+            format!("binaries/{}/{id}.{}", platform.folder, platform.extension),
             opts.unix_permissions(0o755),
         )?;
         zip.write_all(&binary)?;

@@ -24,3 +24,10 @@ fi
 .venv/bin/python -m pip install -q --disable-pip-version-check -r tests/python/requirements.txt
 # sysidentpy (test-only) caps numpy below the pinned version; its own dependencies are pinned above.
 .venv/bin/python -m pip install -q --disable-pip-version-check --no-deps -r tests/python/requirements-peers.txt
+
+# The portable FMU binary (linked against GLIBC 2.17, so that it loads on old Linux): zig and cargo-zigbuild
+# from PyPI, in the venv, where build.rs looks for them. Without them `cargo build --release` still packages the
+# FMUs, linked against this machine's GLIBC, and warns.
+if ! .venv/bin/python -m pip install -q --disable-pip-version-check ziglang==0.17.1 cargo-zigbuild==0.24.1; then
+    echo "warning: could not install ziglang and cargo-zigbuild: the FMUs' binary will need this machine's GLIBC" >&2
+fi

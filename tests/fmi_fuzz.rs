@@ -17,7 +17,7 @@
 //! - a call the state machine forbids returns fmi2Error (`Call::allowed_in`); fmi2Error leaves the instance
 //!   in the error state; the API never enters start/end, step in progress/failed/canceled or fatal;
 //! - every fmi2Error on an instance logs its reason under logStatusError, "<fmi2Name>: ..."; the logger
-//!   always gets "%s", a declared category and the instance's name;
+//!   always gets a format without conversions ('%' doubled), a declared category and the instance's name;
 //! - no get/set returns fmi2OK when a value reference is unknown (for the FMU and the type);
 //! - after fmi2OK from fmi2GetReal every value is finite; from fmi2GetBoolean 0 or 1; from fmi2GetString
 //!   valid UTF-8 C strings;
@@ -35,8 +35,8 @@
 //! Budget: `FMI_FUZZ_CALLS` calls per FMU (default 120,000 in release, 15,000 in a debug build),
 //! `FMI_FUZZ_SEED` the first seed. The seed and the last calls are printed on failure.
 //!
-//! The logger is variadic C; see tests/fmi_state_machine.rs for why a six-argument non-variadic function
-//! receives the one "%s" argument correctly on x86_64 Linux, to which this file is gated.
+//! The logger is variadic C; see tests/common/mod.rs for why a five-argument non-variadic function receives
+//! the layer's calls (no variadic argument) correctly on x86_64 Linux, to which this file is gated.
 #![cfg(all(target_arch = "x86_64", target_os = "linux"))]
 
 mod common;
@@ -128,10 +128,11 @@ impl Slot {
     }
 }
 
-/// A saved FMU state and the FMU it came from.
+/// A saved FMU state, the FMU it came from and the instance that issued it (the only one that accepts it).
 struct Saved {
     ptr: Fmi2FmuState,
     kind: Kind,
+    owner: Fmi2Component,
 }
 
 /// Serialised bytes and the FMU they came from.
@@ -181,6 +182,7 @@ const SLOTS: usize = 4;
 const STATUS_NAMES: [&str; 6] = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"];
 const OK: u32 = 0;
 const ERROR: u32 = 3;
+const DISCARD: u32 = 2;
 
 impl Fuzzer {
     fn new(seed: u64) -> Self {
@@ -480,6 +482,7 @@ impl Fuzzer {
         let post = slot.state();
         let new_log = slot.log_since(log0);
         let has_sink = slot.sink.is_some();
+        let logs_discards = slot.inst().log.discards;
         let name = slot.name.clone();
         for e in &new_log {
             if e.message.starts_with("<format") {
@@ -540,11 +543,31 @@ impl Fuzzer {
                 }
             }
         }
+        // Into step failed only by a step cut short (fmi2Discard), or by restoring a state saved there.
+        let entered_failed = post == State::StepFailed && pre != State::StepFailed;
+        if (call == Call::DoStep && (status == Some(DISCARD)) != (post == State::StepFailed))
+            || (call != Call::DoStep && call != Call::SetFmuState && entered_failed)
+        {
+            self.fail(&format!(
+                "{} returned {status:?} and left the instance in '{}'",
+                call.name(),
+                post.name()
+            ));
+        }
+        if status == Some(DISCARD)
+            && call == Call::DoStep
+            && has_sink
+            && !new_log.iter().any(|e| e.category == "logStatusDiscard")
+            && logs_discards
+        {
+            self.fail("fmi2DoStep returned fmi2Discard without a reason");
+        }
         if !matches!(
             post,
             State::Instantiated
                 | State::InitializationMode
                 | State::StepComplete
+                | State::StepFailed
                 | State::Terminated
                 | State::Error
         ) {
@@ -614,6 +637,8 @@ impl Fuzzer {
             match call {
                 Call::FreeInstance => {
                     fmi2FreeInstance(c);
+                    // The instance's FMU states went with it.
+                    self.states.retain(|s| s.owner != c);
                     self.slots[i] = None;
                     (None, "fmi2FreeInstance".into())
                 }
@@ -686,11 +711,11 @@ impl Fuzzer {
                         let r = self.real();
                         self.pick(&[now + ts, now - ts, f64::NAN, 0.0, now + 0.5 * ts, r])
                     };
-                    // Step sizes are multiples of Ts (or refused ones): a random h with a tiny Ts would be
-                    // billions of samples, a legal but endless step.
-                    let h = match self.below(20) {
-                        _ if self.valid && kind == Kind::Estimator => ts,
-                        n if self.valid => ts * (1 + n % 3) as f64,
+                    // Step sizes relative to Ts (or refused ones): a random h with a tiny Ts would be
+                    // billions of samples, which the plant cuts after 1e8 (seconds of work).
+                    let h = match self.below(24) {
+                        n if self.valid && kind == Kind::Estimator => ts / (1 + n % 4) as f64,
+                        n if self.valid => ts * [1.0, 2.0, 3.0, 0.5, 0.25][n as usize % 5],
                         0 => 0.0,
                         1 => -ts,
                         2 => f64::NAN,
@@ -703,14 +728,42 @@ impl Fuzzer {
                         9 => ts * (1.0 + 1e-9),
                         10 => 2.0 * ts,
                         11 => 3.0 * ts,
+                        12 => ts / 3.0,
+                        13 => f64::from(ts as f32),
                         _ => ts,
                     };
+                    let samples = inst.layer.samples;
                     let s = fmi2DoStep(c, t, h, self.below(2) as i32);
+                    let inst = &*(c as *const Instance);
+                    let advanced = inst.layer.samples - samples;
                     if s == OK {
                         self.stats.steps_ok += 1;
-                        let n = (h / ts).round();
-                        if !(1.0..=3.0).contains(&n) {
-                            self.fail(&format!("fmi2DoStep accepted h = {h:e} with Ts = {ts:e}"));
+                        // The clock follows the master's arithmetic; the samples are the instants reached.
+                        if inst.time() != t + h {
+                            self.fail(&format!(
+                                "fmi2DoStep({t:e}, {h:e}) left the clock at {:e}",
+                                inst.time()
+                            ));
+                        }
+                        let max = (h / ts).ceil() as u64 + 1;
+                        if advanced > max || (kind == Kind::Estimator && advanced > 1) {
+                            self.fail(&format!(
+                                "fmi2DoStep(h = {h:e}, Ts = {ts:e}) advanced {advanced} samples"
+                            ));
+                        }
+                    }
+                    if s == DISCARD {
+                        // Cut at the model's limit: the clock stands at the last instant sampled.
+                        let limit = inst.slave.max_samples_per_step();
+                        let at = inst.layer.start_time + inst.layer.samples as f64 * ts;
+                        if advanced != limit
+                            || inst.time() != at
+                            || (h / ts) < limit as f64 * (1.0 - 1e-6)
+                        {
+                            self.fail(&format!(
+                                "fmi2DoStep(h = {h:e}, Ts = {ts:e}) discarded after {advanced} samples at {:e}",
+                                inst.time()
+                            ));
                         }
                     }
                     (
@@ -826,6 +879,7 @@ impl Fuzzer {
                         &mut size
                     };
                     let s = fmi2SerializedFMUstateSize(c, st, sp);
+                    self.check_owner(s, st, c, "fmi2SerializedFMUstateSize");
                     if s == OK && size != (*(st as *const SavedState)).bytes.len() {
                         self.fail("fmi2SerializedFMUstateSize is wrong");
                     }
@@ -1061,6 +1115,14 @@ impl Fuzzer {
         (Some(st), format!("{}('{}', valid)", call.name(), v.name))
     }
 
+    /// A state function may succeed only on a state the instance `c` issued.
+    fn check_owner(&mut self, status: u32, p: Fmi2FmuState, c: Fmi2Component, what: &str) {
+        let owner = self.states.iter().find(|s| s.ptr == p).map(|s| s.owner);
+        if status == OK && owner != Some(c) {
+            self.fail(&format!("{what} accepted a state another instance issued"));
+        }
+    }
+
     fn some_state(&mut self) -> Fmi2FmuState {
         if self.states.is_empty() || self.chance(0.05) {
             null_mut()
@@ -1084,6 +1146,7 @@ impl Fuzzer {
                 if p != self.states[j].ptr {
                     self.fail("fmi2GetFMUstate moved an existing state");
                 }
+                self.check_owner(s, p, c, "fmi2GetFMUstate (overwrite)");
                 if s == OK {
                     self.states[j].kind = kind;
                 }
@@ -1096,7 +1159,11 @@ impl Fuzzer {
                     self.fail("fmi2GetFMUstate: status and pointer disagree");
                 }
                 if !p.is_null() {
-                    self.states.push(Saved { ptr: p, kind });
+                    self.states.push(Saved {
+                        ptr: p,
+                        kind,
+                        owner: c,
+                    });
                 }
                 (Some(s), "fmi2GetFMUstate(new)".into())
             }
@@ -1118,6 +1185,7 @@ impl Fuzzer {
             (null_mut(), None)
         };
         let s = unsafe { fmi2SetFMUstate(c, p) };
+        self.check_owner(s, p, c, "fmi2SetFMUstate");
         if s == OK {
             self.stats.states_restored += 1;
             if from != Some(kind) {
@@ -1146,6 +1214,7 @@ impl Fuzzer {
                 let j = self.below(self.states.len() as u64) as usize;
                 let mut p = self.states[j].ptr;
                 let s = unsafe { fmi2FreeFMUstate(c, &mut p) };
+                self.check_owner(s, self.states[j].ptr, c, "fmi2FreeFMUstate");
                 if p.is_null() {
                     self.states.swap_remove(j);
                     if s != OK {
@@ -1195,6 +1264,7 @@ impl Fuzzer {
             null_mut()
         };
         let s = unsafe { fmi2SerializeFMUstate(c, st, bp, size) };
+        self.check_owner(s, st, c, "fmi2SerializeFMUstate");
         if s == OK {
             if size != len {
                 self.fail("fmi2SerializeFMUstate accepted a wrong size");
@@ -1320,6 +1390,14 @@ impl Fuzzer {
         };
         let s = unsafe { fmi2DeSerializeFMUstate(c, ptr, size, tp) };
         let desc = format!("fmi2DeSerializeFMUstate({what:?}, size {size}, into {overwrite:?})");
+        if let Some(j) = overwrite {
+            self.check_owner(
+                s,
+                self.states[j].ptr,
+                c,
+                "fmi2DeSerializeFMUstate (overwrite)",
+            );
+        }
         if s == OK {
             self.stats.deserialized += 1;
             match what {
@@ -1338,12 +1416,18 @@ impl Fuzzer {
                     }
                     self.states[j].kind = kind;
                 }
-                None => self.states.push(Saved { ptr: target, kind }),
+                None => self.states.push(Saved {
+                    ptr: target,
+                    kind,
+                    owner: c,
+                }),
             }
         } else {
+            // (Overwriting a state another instance issued is refused, whatever the bytes.)
             if what == What::Intact(kind)
                 && !tp.is_null()
                 && Call::DeSerializeFmuState.allowed_in(state)
+                && overwrite.is_none_or(|j| self.states[j].owner == c)
             {
                 // A state this FMU serialised deserialises again wherever the call is legal.
                 self.stats.own_state_refused[kind.idx()] += 1;
@@ -1372,7 +1456,8 @@ impl Fuzzer {
     }
 
     fn teardown(&mut self) {
-        // Free every state through a fresh instance, then the instances.
+        // A fresh instance refuses every state (none is its own), then each instance is freed with the states
+        // it still holds.
         let sink: Box<Sink> = Box::default();
         let cb = Fmi2CallbackFunctions {
             logger: logger(),
@@ -1393,7 +1478,12 @@ impl Fuzzer {
             );
             assert!(!c.is_null());
             for mut s in self.states.drain(..) {
-                assert_eq!(fmi2FreeFMUstate(c, &mut s.ptr), OK);
+                let p = s.ptr;
+                assert_eq!(fmi2FreeFMUstate(c, &mut s.ptr), ERROR);
+                assert_eq!(
+                    s.ptr, p,
+                    "a refused fmi2FreeFMUstate must leave the pointer"
+                );
             }
             fmi2FreeInstance(c);
             for s in self.slots.iter_mut() {

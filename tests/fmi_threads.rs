@@ -9,8 +9,8 @@
 //!   instantiate / initialise / step / get-set FMU state / serialise / refuse / reset / free cycles on both
 //!   FMUs, for "definitely lost: 0 bytes".
 //!
-//! The logger is variadic C; see tests/fmi_state_machine.rs for why a six-argument non-variadic function
-//! receives the one "%s" argument correctly on x86_64 Linux, to which this file is gated.
+//! The logger is variadic C; see tests/common/mod.rs for why a five-argument non-variadic function receives
+//! the layer's calls (no variadic argument) correctly on x86_64 Linux, to which this file is gated.
 #![cfg(all(target_arch = "x86_64", target_os = "linux"))]
 
 mod common;

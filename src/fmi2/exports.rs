@@ -6,7 +6,7 @@
 #![allow(non_snake_case, clippy::missing_safety_doc)]
 
 use super::ffi::*;
-use super::instance::{Instance, SavedState, emit_raw};
+use super::instance::{Instance, SavedState, StepOutcome, emit_raw};
 use super::state::{Call, State};
 use super::vars::{Value, VarType};
 use std::ffi::{CStr, c_char};
@@ -459,6 +459,27 @@ pub unsafe extern "C" fn fmi2SetString(
     }
 }
 
+/// Read the importer's `*FMUstate` from the address `state`, after making sure `state` is not itself one of
+/// the instance's states (an importer passing the state where its address is expected, as some do with
+/// fmi2FreeFMUstate): that pointer is refused without being read through.
+unsafe fn read_state_slot(
+    inst: &Instance,
+    state: *mut Fmi2FmuState,
+) -> Result<*mut SavedState, String> {
+    if state.is_null() {
+        return Err("FMUstate is NULL (expected the address of an fmi2FMUstate variable)".into());
+    }
+    if inst.issued_state(state as *const SavedState).is_ok() {
+        return Err(
+            "the argument is an fmi2FMUstate itself, not the address of a variable holding it \
+             (pass &state)"
+                .into(),
+        );
+    }
+    // SAFETY: a non-NULL pointer that is not one of our states is the importer's fmi2FMUstate variable.
+    Ok(unsafe { *state } as *mut SavedState)
+}
+
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2GetFMUstate(
     c: Fmi2Component,
@@ -466,17 +487,9 @@ pub unsafe extern "C" fn fmi2GetFMUstate(
 ) -> Fmi2StatusC {
     unsafe {
         with_instance(c, Call::GetFmuState, |inst| {
-            if state.is_null() {
-                return Err("FMUstate is NULL".into());
-            }
+            let existing = read_state_slot(inst, state)?;
             let saved = inst.save_state()?;
-            let existing = *state as *mut SavedState;
-            if existing.is_null() {
-                *state = Box::into_raw(Box::new(saved)) as Fmi2FmuState;
-            } else {
-                // The importer hands back a state this library made: overwrite it in place.
-                *existing = saved;
-            }
+            *state = inst.issue_state(existing, saved)? as Fmi2FmuState;
             Ok(Fmi2Status::Ok)
         })
     }
@@ -489,8 +502,10 @@ pub unsafe extern "C" fn fmi2SetFMUstate(c: Fmi2Component, state: Fmi2FmuState) 
             if state.is_null() {
                 return Err("FMUstate is NULL".into());
             }
-            let saved = &*(state as *const SavedState);
-            inst.restore_state(saved)?;
+            let p = state as *const SavedState;
+            inst.issued_state(p)?;
+            // SAFETY: checked against the registry just above: a live state of this instance.
+            inst.restore_state(&*p)?;
             Ok(Fmi2Status::Ok)
         })
     }
@@ -502,13 +517,10 @@ pub unsafe extern "C" fn fmi2FreeFMUstate(
     state: *mut Fmi2FmuState,
 ) -> Fmi2StatusC {
     unsafe {
-        with_instance(c, Call::FreeFmuState, |_| {
-            if state.is_null() {
-                return Err("FMUstate is NULL".into());
-            }
-            let s = *state as *mut SavedState;
+        with_instance(c, Call::FreeFmuState, |inst| {
+            let s = read_state_slot(inst, state)?;
             if !s.is_null() {
-                drop(Box::from_raw(s));
+                inst.free_state(s)?;
                 *state = std::ptr::null_mut();
             }
             Ok(Fmi2Status::Ok)
@@ -523,11 +535,11 @@ pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
     size: *mut usize,
 ) -> Fmi2StatusC {
     unsafe {
-        with_instance(c, Call::SerializedFmuStateSize, |_| {
+        with_instance(c, Call::SerializedFmuStateSize, |inst| {
             if state.is_null() || size.is_null() {
                 return Err("FMUstate or size is NULL".into());
             }
-            *size = (*(state as *const SavedState)).bytes.len();
+            *size = inst.issued_state(state as *const SavedState)?.bytes.len();
             Ok(Fmi2Status::Ok)
         })
     }
@@ -541,11 +553,11 @@ pub unsafe extern "C" fn fmi2SerializeFMUstate(
     size: usize,
 ) -> Fmi2StatusC {
     unsafe {
-        with_instance(c, Call::SerializeFmuState, |_| {
+        with_instance(c, Call::SerializeFmuState, |inst| {
             if state.is_null() {
                 return Err("FMUstate is NULL".into());
             }
-            let saved = &*(state as *const SavedState);
+            let saved = inst.issued_state(state as *const SavedState)?;
             if size != saved.bytes.len() {
                 return Err(format!(
                     "size {size} differs from fmi2SerializedFMUstateSize {}",
@@ -568,20 +580,13 @@ pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
 ) -> Fmi2StatusC {
     unsafe {
         with_instance(c, Call::DeSerializeFmuState, |inst| {
-            if state.is_null() {
-                return Err("FMUstate is NULL".into());
-            }
+            let existing = read_state_slot(inst, state)?;
             let data = slice(bytes as *const u8, size, "serializedState")?;
             inst.check_state_bytes(data)?;
             let saved = SavedState {
                 bytes: data.to_vec(),
             };
-            let existing = *state as *mut SavedState;
-            if existing.is_null() {
-                *state = Box::into_raw(Box::new(saved)) as Fmi2FmuState;
-            } else {
-                *existing = saved;
-            }
+            *state = inst.issue_state(existing, saved)? as Fmi2FmuState;
             Ok(Fmi2Status::Ok)
         })
     }
@@ -646,8 +651,30 @@ pub unsafe extern "C" fn fmi2DoStep(
             inst.log_call(Call::DoStep, || {
                 format!("currentCommunicationPoint={current_communication_point}, communicationStepSize={communication_step_size}")
             });
-            inst.do_step(current_communication_point, communication_step_size)?;
-            Ok(Fmi2Status::Ok)
+            match inst.do_step(current_communication_point, communication_step_size)? {
+                StepOutcome::Complete => Ok(Fmi2Status::Ok),
+                StepOutcome::Cut { at, reached, limit } => {
+                    // fmi2Discard: only part of the step was computed; the standard's step failed state
+                    // follows, from which the master reads fmi2LastSuccessfulTime, then terminates or
+                    // restores an FMU state and retries with a shorter step.
+                    inst.layer.state = State::StepFailed;
+                    if inst.log.discards {
+                        inst.emit(
+                            Fmi2Status::Discard,
+                            "logStatusDiscard",
+                            &format!(
+                                "fmi2DoStep: the step from {current_communication_point} by \
+                                 {communication_step_size} reaches {reached} sample instants; {} takes at most \
+                                 {limit} per step, so it stopped at t = {at} (fmi2LastSuccessfulTime). Step by \
+                                 at most Ts = {}",
+                                inst.slave.identifier(),
+                                inst.slave.sample_period()
+                            ),
+                        );
+                    }
+                    Ok(Fmi2Status::Discard)
+                }
+            }
         })
     }
 }

@@ -57,7 +57,7 @@ pub const FMI2_PENDING_STATUS: Fmi2StatusKind = 1;
 pub const FMI2_LAST_SUCCESSFUL_TIME: Fmi2StatusKind = 2;
 pub const FMI2_TERMINATED: Fmi2StatusKind = 3;
 
-/// The logger is variadic C: the layer always passes "%s" as the message and the text as its argument.
+/// The logger is variadic C: the layer passes the message as the format, every `%` doubled, and no varargs.
 pub type Fmi2CallbackLogger = Option<
     unsafe extern "C" fn(
         Fmi2ComponentEnvironment,

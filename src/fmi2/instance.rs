@@ -12,31 +12,69 @@ use super::vars::{Causality, Start, Value, VarInfo, VarType, Variability};
 use serde::{Deserialize, Serialize};
 use std::ffi::{CStr, CString};
 
-/// Relative tolerance for "a whole number of sample periods" and for matching communication points.
-pub const STEP_TOLERANCE: f64 = 1e-6;
+/// The one time tolerance, relative to the time it is applied at (an instant t_j, or the instance's clock):
+/// 1e-7, above the relative rounding of a float32 (2^-24 = 6e-8), so that a master whose step is a float32
+/// (h = float32(0.1) = 0.1000000015) or whose clock is a float32 or float64 sum lands on the instants it
+/// means to; for instants it is never more than a quarter of the step nor a quarter of Ts (see
+/// [`instant_tolerance`]), so that steps far shorter than the relative tolerance stay exact late in long runs.
+pub const TIME_TOLERANCE: f64 = 1e-7;
+
+/// Tolerance for comparing a time with `at` (the master's clock arithmetic): relative to `at`, with `ts` as
+/// the floor of the scale so that times near 0 are not compared exactly.
+pub fn time_tolerance(at: f64, ts: f64) -> f64 {
+    TIME_TOLERANCE * at.abs().max(ts)
+}
+
+/// Tolerance for "a step ending at `end` reaches the instant `at`": [`time_tolerance`], at most a quarter of
+/// the step `h` and of the sample period `ts` (so that instants never merge and sub-steps stay distinct).
+pub fn instant_tolerance(at: f64, ts: f64, h: f64) -> f64 {
+    time_tolerance(at, ts).min(0.25 * h.min(ts))
+}
 
 /// Tag at the start of every saved or serialised FMU state.
-const STATE_FORMAT: &str = "backlash-fmu-state/1";
+const STATE_FORMAT: &str = "backlash-fmu-state/2";
 
 /// What the layer itself keeps besides the model (saved with it in an FMU state).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+///
+/// Timing (sampled data): the sample instants are t_j = start_time + j Ts. `samples` = k means the instants
+/// t_1 .. t_k have been reached, so the outputs are sample k's. `time` is the instance's clock, the end of
+/// the last step exactly as the master computed it (never snapped to an instant). `latched` holds the inputs
+/// current at t_k once a step has started from t_k: they are sample k's inputs, used when t_{k+1} is reached,
+/// whatever the master sets in between. `latched` is false while the clock stands at t_k.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LayerState {
     pub state: State,
     pub start_time: f64,
     pub stop_time: Option<f64>,
+    pub time: f64,
     /// Samples advanced since fmi2ExitInitializationMode.
     pub samples: u64,
+    pub latched: bool,
+    /// The inputs (in the order of the variable table) latched at t_k, as numbers (meaningful when
+    /// `latched`; always one per input, so that stepping does not allocate).
+    pub latched_inputs: Vec<f64>,
 }
 
 impl LayerState {
-    fn new() -> Self {
+    fn new(inputs: usize) -> Self {
         Self {
             state: State::Instantiated,
             start_time: 0.0,
             stop_time: None,
+            time: 0.0,
             samples: 0,
+            latched: false,
+            latched_inputs: vec![0.0; inputs],
         }
     }
+}
+
+/// What one fmi2DoStep did: every instant it reached was sampled, or the model's limit cut it short at the
+/// returned time (fmi2Discard, the last successful time).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StepOutcome {
+    Complete,
+    Cut { at: f64, reached: u64, limit: u64 },
 }
 
 /// The object-safe face of a model, so that one instance type serves every FMU.
@@ -45,7 +83,8 @@ pub trait Slave: Send {
     fn guid(&self) -> &'static str;
     fn log_categories(&self) -> &'static [&'static str];
     fn variables(&self) -> &'static [VarInfo];
-    fn max_samples_per_step(&self) -> Option<u64>;
+    /// Most samples one communication step may advance; a step reaching more instants is cut there.
+    fn max_samples_per_step(&self) -> u64;
     fn get(&self, index: usize) -> Value;
     fn set(&mut self, index: usize, value: Value);
     fn exit_initialization(&mut self) -> Result<(), String>;
@@ -85,12 +124,13 @@ struct Header {
 }
 
 /// The layer states an FMU state may carry: those a sequence of legal calls can leave an instance in.
-fn check_layer(l: &LayerState) -> Result<(), String> {
+fn check_layer(l: &LayerState, inputs: usize) -> Result<(), String> {
     if !matches!(
         l.state,
         State::Instantiated
             | State::InitializationMode
             | State::StepComplete
+            | State::StepFailed
             | State::Terminated
             | State::Error
     ) {
@@ -104,6 +144,15 @@ fn check_layer(l: &LayerState) -> Result<(), String> {
             .is_some_and(|s| !(s.is_finite() && s >= l.start_time))
     {
         return Err("the FMU state's start or stop time is invalid".into());
+    }
+    if !l.time.is_finite() || l.time < l.start_time {
+        return Err("the FMU state's time is not finite or lies before its start time".into());
+    }
+    let v = &l.latched_inputs;
+    if v.len() != inputs || v.iter().any(|x| !x.is_finite()) {
+        return Err(format!(
+            "the FMU state's latched inputs are not {inputs} finite numbers"
+        ));
     }
     Ok(())
 }
@@ -132,11 +181,20 @@ fn parse_state<M: Model>(bytes: &[u8]) -> Result<Envelope<M>, String> {
     let env: Envelope<M> = serde_json::from_slice(bytes)
         .map_err(|e| format!("the FMU state is truncated or corrupted ({e})"))?;
     debug_assert!(env.format == STATE_FORMAT && env.guid == M::GUID);
-    check_layer(&env.layer)?;
+    check_layer(&env.layer, input_indices(M::VARIABLES).len())?;
     env.model
         .check_restored()
         .map_err(|e| format!("the FMU state is inconsistent: {e}"))?;
     Ok(env)
+}
+
+/// Indices of the input variables, in the order of the variable table.
+fn input_indices(vars: &[VarInfo]) -> Vec<usize> {
+    vars.iter()
+        .enumerate()
+        .filter(|(_, v)| v.causality == Causality::Input)
+        .map(|(i, _)| i)
+        .collect()
 }
 
 /// A model at its XML start values.
@@ -180,7 +238,7 @@ impl<M: Model> Slave for Adapter<M> {
     fn variables(&self) -> &'static [VarInfo] {
         M::VARIABLES
     }
-    fn max_samples_per_step(&self) -> Option<u64> {
+    fn max_samples_per_step(&self) -> u64 {
         M::MAX_SAMPLES_PER_STEP
     }
     fn get(&self, index: usize) -> Value {
@@ -233,6 +291,7 @@ pub struct SavedState {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct LogSwitches {
     pub errors: bool,
+    pub discards: bool,
     pub warnings: bool,
     pub calls: bool,
 }
@@ -251,6 +310,12 @@ pub struct Instance {
     vr_table: VrTable,
     /// Indices of the Real outputs (checked after every step).
     real_outputs: Vec<usize>,
+    /// Indices of the inputs (latched at each sample instant).
+    inputs: Vec<usize>,
+    /// The inputs' current values while a sample runs on the latched ones (allocated once).
+    held_inputs: Vec<f64>,
+    /// The FMU states this instance issued and has not freed: the only pointers the state functions accept.
+    issued: Vec<*mut SavedState>,
 }
 
 // The callbacks hold raw pointers owned by the importer; the standard lets the importer call an instance from
@@ -274,10 +339,17 @@ impl Instance {
             logging_on,
             log: LogSwitches {
                 errors: true,
+                discards: true,
                 warnings: true,
                 calls: false,
             },
-            layer: LayerState::new(),
+            layer: LayerState::new(
+                slave
+                    .variables()
+                    .iter()
+                    .filter(|v| v.causality == Causality::Input)
+                    .count(),
+            ),
             vr_table: VrTable::new(slave.variables()),
             real_outputs: slave
                 .variables()
@@ -286,12 +358,15 @@ impl Instance {
                 .filter(|(_, v)| v.causality == Causality::Output && v.ty == VarType::Real)
                 .map(|(i, _)| i)
                 .collect(),
+            inputs: input_indices(slave.variables()),
+            held_inputs: Vec::new(),
+            issued: Vec::new(),
             slave,
             string_buffer: Vec::new(),
         }
     }
 
-    /// Send one message to the importer's logger, with "%s" as the format.
+    /// Send one message to the importer's logger (see [`emit_raw`]).
     pub fn emit(&self, status: Fmi2Status, category: &str, text: &str) {
         emit_raw(&self.callbacks, &self.name, status, category, text);
     }
@@ -320,18 +395,25 @@ impl Instance {
     /// Refuse a call the state machine does not allow, with a reason that names the call and the state.
     pub fn check_state(&self, call: Call) -> Result<(), String> {
         if call.allowed_in(self.layer.state) {
-            Ok(())
-        } else {
-            Err(format!(
-                "illegal call in state '{}' of instance '{}'",
-                self.layer.state.name(),
-                self.name.to_string_lossy()
-            ))
+            return Ok(());
         }
+        // After fmi2Error the standard allows only the getters, the FMU-state functions, fmi2Reset and
+        // fmi2FreeInstance (state.rs), so fmi2Terminate after an error is refused too.
+        Err(format!(
+            "illegal call in state '{}' of instance '{}'",
+            self.layer.state.name(),
+            self.name.to_string_lossy()
+        ))
     }
 
+    /// The instance's clock: the start time, then the end of the last step (see [`LayerState`]).
     pub fn time(&self) -> f64 {
-        self.layer.start_time + self.layer.samples as f64 * self.slave.sample_period()
+        self.layer.time
+    }
+
+    /// Sample instant t_j.
+    fn instant(&self, j: u64) -> f64 {
+        self.layer.start_time + self.offset(j)
     }
 
     pub fn set_debug_logging(&mut self, on: bool, categories: &[String]) -> Result<(), String> {
@@ -350,6 +432,7 @@ impl Instance {
         // logStatusError stays on whatever is asked: refusals always carry their reason.
         self.log = LogSwitches {
             errors: true,
+            discards: !on || has("logStatusDiscard"),
             warnings: !on || has("logStatusWarning"),
             calls: on && has("logCalls"),
         };
@@ -392,7 +475,9 @@ impl Instance {
         }
         self.slave.exit_initialization()?;
         self.check_outputs("at the start")?;
+        self.layer.time = self.layer.start_time;
         self.layer.samples = 0;
+        self.layer.latched = false;
         self.layer.state = State::StepComplete;
         Ok(())
     }
@@ -404,7 +489,7 @@ impl Instance {
 
     pub fn reset(&mut self) -> Result<(), String> {
         self.slave.reset();
-        self.layer = LayerState::new();
+        self.layer = LayerState::new(self.inputs.len());
         self.string_buffer.clear();
         Ok(())
     }
@@ -576,10 +661,13 @@ impl Instance {
         Ok(())
     }
 
-    /// Advance from `t` by `h`: a whole number of sample periods, with the inputs held.
-    pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), String> {
+    /// Advance the clock from `t` to `t + h`, sampling at every instant t_j the step reaches (sampled data,
+    /// see [`LayerState`]): the first instant takes the inputs latched at the previous one, later instants
+    /// inside the step take the inputs held over it. A step reaching more instants than the model allows is
+    /// cut at the last allowed one ([`StepOutcome::Cut`], the clock then stands there).
+    pub fn do_step(&mut self, t: f64, h: f64) -> Result<StepOutcome, String> {
         let ts = self.slave.sample_period();
-        let now = self.time();
+        let now = self.layer.time;
         if !t.is_finite() || !h.is_finite() {
             return Err(format!(
                 "currentCommunicationPoint {t} and communicationStepSize {h} must be finite"
@@ -588,50 +676,132 @@ impl Instance {
         if h <= 0.0 {
             return Err(format!("communicationStepSize {h} must be > 0"));
         }
-        if (t - now).abs() > STEP_TOLERANCE * ts + 1e-12 * now.abs() {
+        if (t - now).abs() > time_tolerance(now, ts) {
             return Err(format!(
-                "currentCommunicationPoint {t} is not the instance's time {now} (the end of the previous step)"
+                "currentCommunicationPoint {t} is not the instance's time {now} (the end of the previous step; \
+                 relative tolerance {TIME_TOLERANCE})"
             ));
         }
-        let n = (h / ts).round();
-        if n < 1.0 || (h - n * ts).abs() > STEP_TOLERANCE * h.max(ts) {
+        let end = t + h;
+        if !end.is_finite() {
+            return Err(format!("the step would end at {end}, which is not finite"));
+        }
+        if end <= t {
             return Err(format!(
-                "communicationStepSize {h} is not a whole number of sample periods Ts = {ts} \
-                 (relative tolerance {STEP_TOLERANCE})"
+                "communicationStepSize {h} is below the resolution of the time {t} (t + h = t)"
             ));
         }
-        if n > 1e12 {
-            return Err(format!(
-                "communicationStepSize {h} spans {n} samples, more than 1e12"
-            ));
-        }
-        let n = n as u64;
-        if let Some(max) = self.slave.max_samples_per_step()
-            && n > max
+        if let Some(stop) = self.layer.stop_time
+            && end > stop + time_tolerance(stop, ts)
         {
             return Err(format!(
-                "{} takes at most {max} sample(s) per communication step; communicationStepSize {h} spans {n} \
-                 samples of Ts = {ts}",
-                self.slave.identifier()
+                "the step would end at {end}, after the stopTime {stop} set in fmi2SetupExperiment"
             ));
         }
-        if !(now + n as f64 * ts).is_finite() {
-            return Err(format!(
-                "the step would end at a time that is not finite (Ts = {ts}, {n} samples)"
-            ));
+        let reached = self.instants_reached(end, h);
+        let limit = self.slave.max_samples_per_step();
+        if !self.layer.latched {
+            // The step starts at t_k: what is set now is sample k's input.
+            self.latch_inputs();
         }
-        if let Some(stop) = self.layer.stop_time {
-            let end = now + n as f64 * ts;
-            if end > stop + STEP_TOLERANCE * ts {
-                return Err(format!(
-                    "the step would end at {end}, after the stopTime {stop} set in fmi2SetupExperiment"
-                ));
+        let n = reached.min(limit);
+        if n > 0 {
+            self.sample_latched()?;
+            if n > 1 {
+                self.slave.step(n - 1)?;
+            }
+            self.layer.samples += n;
+            self.layer.latched = false;
+        }
+        let outcome = if reached > limit {
+            let at = self.instant(self.layer.samples);
+            self.layer.time = at;
+            StepOutcome::Cut { at, reached, limit }
+        } else {
+            self.layer.time = end;
+            let (last, since) = (
+                self.instant(self.layer.samples),
+                (end - self.layer.start_time) - self.offset(self.layer.samples),
+            );
+            // A step ending past its last instant has held the inputs there: they are that sample's.
+            if n > 0 && since > instant_tolerance(last, ts, h) {
+                self.latch_inputs();
+            }
+            StepOutcome::Complete
+        };
+        self.check_outputs("after the step")?;
+        Ok(outcome)
+    }
+
+    /// How many instants after t_k a step of size `h` ending at `end` reaches (an instant within
+    /// [`instant_tolerance`] of the end counts as reached). Offsets from the start time are compared, so that
+    /// a start time far larger than Ts does not swallow the instants.
+    fn instants_reached(&self, end: f64, h: f64) -> u64 {
+        let (ts, k) = (self.slave.sample_period(), self.layer.samples);
+        let since_start = end - self.layer.start_time;
+        let reaches = |j: u64| {
+            let at = self.instant(j);
+            self.offset(j) - instant_tolerance(at, ts, h) <= since_start
+        };
+        // The estimate is within one or two of the answer (the tolerance is below Ts / 4), unless the sample
+        // count is beyond what a float resolves (2^53), where a few adjustments are as good as any; `as`
+        // saturates.
+        let mut j = ((since_start / ts).floor().max(0.0) as u64).max(k);
+        for _ in 0..4 {
+            if j < u64::MAX && reaches(j + 1) {
+                j += 1;
+            } else if j > k && !reaches(j) {
+                j -= 1;
+            } else {
+                break;
             }
         }
-        self.slave.step(n)?;
-        self.layer.samples += n;
-        self.check_outputs("after the step")?;
-        Ok(())
+        j - k
+    }
+
+    /// Time from the start to instant t_j.
+    fn offset(&self, j: u64) -> f64 {
+        j as f64 * self.slave.sample_period()
+    }
+
+    /// Latch the inputs' current values as those of the instant the clock stands at.
+    fn latch_inputs(&mut self) {
+        let mut buf = std::mem::take(&mut self.layer.latched_inputs);
+        self.read_inputs(&mut buf);
+        self.layer.latched_inputs = buf;
+        self.layer.latched = true;
+    }
+
+    /// The inputs' current values, as numbers, into `buf` (no allocation once `buf` has its size).
+    fn read_inputs(&self, buf: &mut Vec<f64>) {
+        buf.clear();
+        buf.extend(self.inputs.iter().map(|&i| self.slave.get(i).as_real()));
+    }
+
+    /// Advance one sample with the latched inputs, then put the current inputs back.
+    fn sample_latched(&mut self) -> Result<(), String> {
+        let mut held = std::mem::take(&mut self.held_inputs);
+        self.read_inputs(&mut held);
+        let latched = std::mem::take(&mut self.layer.latched_inputs);
+        self.apply_inputs(&latched);
+        let result = self.slave.step(1);
+        self.apply_inputs(&held);
+        self.layer.latched_inputs = latched;
+        self.held_inputs = held;
+        result
+    }
+
+    fn apply_inputs(&mut self, values: &[f64]) {
+        for (&i, &x) in self.inputs.iter().zip(values) {
+            let value = match self.slave.variables()[i].ty {
+                VarType::Real => Value::Real(x),
+                VarType::Integer => Value::Integer(x as i32),
+                VarType::Boolean => Value::Boolean(x != 0.0),
+                // String inputs cannot be latched as numbers; no model of this crate has one.
+                VarType::String => continue,
+            };
+            self.slave.set(i, value);
+        }
     }
 
     /// A model that diverged (an unstable linear block, absurd inputs or parameters) must not be reported as
@@ -662,12 +832,73 @@ impl Instance {
         Ok(())
     }
 
+    /// Store `saved` where the importer's `*FMUstate` points: in the state it names if that is one this
+    /// instance issued (the standard's "overwrite a previous state"), else in a new one. Returns the pointer
+    /// to hand out. A non-NULL pointer this instance did not issue is refused, never dereferenced.
+    pub fn issue_state(
+        &mut self,
+        existing: *mut SavedState,
+        saved: SavedState,
+    ) -> Result<*mut SavedState, String> {
+        if existing.is_null() {
+            let p = Box::into_raw(Box::new(saved));
+            self.issued.push(p);
+            return Ok(p);
+        }
+        let q = self.find_issued(existing)?;
+        // SAFETY: `q` comes from the registry: a live Box this instance made and has not freed.
+        unsafe { *q = saved };
+        Ok(q)
+    }
+
+    /// The state behind `p` if this instance issued it and has not freed it.
+    pub fn issued_state(&self, p: *const SavedState) -> Result<&SavedState, String> {
+        let q = self.find_issued(p)?;
+        // SAFETY: `q` comes from the registry: a live Box this instance made; it lives while `self` holds it.
+        Ok(unsafe { &*q })
+    }
+
+    /// Free a state this instance issued.
+    pub fn free_state(&mut self, p: *mut SavedState) -> Result<(), String> {
+        let q = self.find_issued(p)?;
+        self.issued.retain(|&r| r != q);
+        // SAFETY: `q` was in the registry (a live Box from `issue_state`) and is now out of it: freed once.
+        drop(unsafe { Box::from_raw(q) });
+        Ok(())
+    }
+
+    /// The registry's entry equal to `p`: pointers are compared, never read through.
+    fn find_issued(&self, p: *const SavedState) -> Result<*mut SavedState, String> {
+        if let Some(&q) = self.issued.iter().find(|&&q| std::ptr::eq(q, p)) {
+            Ok(q)
+        } else {
+            Err(format!(
+                "FMUstate {p:p} is not a state this instance issued (or it was freed): pass the fmi2FMUstate \
+                 that fmi2GetFMUstate or fmi2DeSerializeFMUstate returned (for fmi2FreeFMUstate, its address)"
+            ))
+        }
+    }
+}
+
+impl Instance {
     pub fn check_state_bytes(&self, bytes: &[u8]) -> Result<(), String> {
         self.slave.check_state(bytes)
     }
 }
 
-/// Log through the importer's logger, if it gave one, with "%s" as the format and `text` as its argument.
+impl Drop for Instance {
+    /// States the importer did not free belong to the instance and go with it.
+    fn drop(&mut self) {
+        for p in self.issued.drain(..) {
+            // SAFETY: every registered pointer is a live Box from `issue_state`, freed nowhere else.
+            drop(unsafe { Box::from_raw(p) });
+        }
+    }
+}
+
+/// Log through the importer's logger, if it gave one. The text is the format itself, with every '%' doubled
+/// and no further argument: printf-style loggers (FMPy's, the FMI Library's) print it unchanged, and loggers
+/// that do not format show it as it is, apart from the doubled '%' (the standard's logger is a printf format).
 pub fn emit_raw(
     callbacks: &Fmi2CallbackFunctions,
     instance: &CStr,
@@ -677,17 +908,16 @@ pub fn emit_raw(
 ) {
     if let Some(logger) = callbacks.logger {
         let category = cstring(category);
-        let text = cstring(text);
+        let format = cstring(&text.replace('%', "%%"));
         // SAFETY: the logger is the importer's C function; all strings are NUL-terminated and outlive the
-        // call; "%s" consumes exactly the one string argument passed.
+        // call; the format has no conversion (every '%' is doubled), so no variadic argument is read.
         unsafe {
             logger(
                 callbacks.component_environment,
                 instance.as_ptr(),
                 status as super::ffi::Fmi2StatusC,
                 category.as_ptr(),
-                c"%s".as_ptr(),
-                text.as_ptr(),
+                format.as_ptr(),
             );
         }
     }

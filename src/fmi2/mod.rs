@@ -32,8 +32,9 @@ pub trait Model: Serialize + DeserializeOwned + Send + 'static {
     const LOG_CATEGORIES: &'static [&'static str];
     /// The generated variable table; `Self::var(i)` is the variant of `VARIABLES[i]`.
     const VARIABLES: &'static [VarInfo];
-    /// Most samples one communication step may advance (`None`: no limit).
-    const MAX_SAMPLES_PER_STEP: Option<u64>;
+    /// Most samples one communication step may advance; a step reaching more sample instants is cut at the
+    /// last allowed one and answered with fmi2Discard.
+    const MAX_SAMPLES_PER_STEP: u64;
 
     fn var(index: usize) -> Self::Var;
     /// A model with every variable at its start value (the layer applies the XML start values next).
@@ -42,9 +43,9 @@ pub trait Model: Serialize + DeserializeOwned + Send + 'static {
     fn set(&mut self, var: Self::Var, value: Value);
     /// Validate the parameters and prepare the model for stepping. `Err` names the parameter and the reason.
     fn exit_initialization(&mut self) -> Result<(), String>;
-    /// Sample period in seconds (a parameter); each communication step is a whole number of these.
+    /// Sample period in seconds (a parameter): the layer samples at start + k Ts (see `instance::LayerState`).
     fn sample_period(&self) -> f64;
-    /// Advance `n` samples with the inputs held.
+    /// Advance `n` samples with the inputs as they are now (the layer sets the latched ones first).
     fn step(&mut self, n: u64) -> Result<(), String>;
     /// Consistency of a model restored from an FMU state (which may come from outside: a file, another
     /// process). `Err` names what is wrong; the state is then refused.

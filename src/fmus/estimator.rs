@@ -1,8 +1,9 @@
 //! MrgiaEstimator.fmu: the MRGIA estimator of `crate::identify::mrgia` behind the FMI layer.
 //!
-//! Timing: the pair (u, y) set at t_k is sample k; the communication step from t_k processes it, so after the
-//! step (at t_{k+1}) the outputs are the estimate after sample k, y_hat(k), e(k) and Phi(k). One sample per
-//! communication step: a longer step would feed the same sample several times, which is refused.
+//! Timing (the FMI layer's sampled data): the pair (u, y) current at t_k is sample k; when a step reaches
+//! t_{k+1} the estimator processes it, so from t_{k+1} on the outputs are the estimate after sample k,
+//! y_hat(k), e(k) and Phi(k). One sample per communication step: a step reaching a second instant would
+//! feed the pair held over the step as a second sample, so the layer cuts it at the first (fmi2Discard).
 
 use super::mrgia_estimator::{self as md, Var};
 use crate::fmi2::Model;
@@ -73,7 +74,7 @@ impl Model for EstimatorFmu {
     const GUID: &'static str = md::GUID;
     const LOG_CATEGORIES: &'static [&'static str] = md::LOG_CATEGORIES;
     const VARIABLES: &'static [VarInfo] = &md::VARIABLES;
-    const MAX_SAMPLES_PER_STEP: Option<u64> = Some(1);
+    const MAX_SAMPLES_PER_STEP: u64 = 1;
 
     fn var(index: usize) -> Var {
         Var::ALL[index]
@@ -220,11 +221,12 @@ impl Model for EstimatorFmu {
     }
 
     fn step(&mut self, n: u64) -> Result<(), String> {
-        debug_assert_eq!(n, 1, "the layer enforces MAX_SAMPLES_PER_STEP");
         let est = self.est.as_mut().ok_or(
             "the estimator is not initialised (fmi2ExitInitializationMode was not called)",
         )?;
-        est.update(self.u, self.y);
+        for _ in 0..n {
+            est.update(self.u, self.y);
+        }
         Ok(())
     }
 }

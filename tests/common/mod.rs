@@ -1,9 +1,11 @@
 //! What the in-process FMI tests share: a logger that records what the layer logs.
 //!
-//! The FMI logger is variadic C, and Rust cannot define variadic functions on stable. The layer always calls
-//! it with the format "%s" and the text as the one variadic argument; on x86_64 SysV (the platform the tests
-//! that use this module are gated to) a variadic call with one pointer argument passes it exactly like a
-//! sixth named argument, so a six-argument `extern "C"` function transmuted to the logger type receives it.
+//! The FMI logger is variadic C, and Rust cannot define variadic functions on stable. The layer calls it with
+//! the message as the format, every '%' doubled, and no variadic argument; on x86_64 SysV (the platform the
+//! tests that use this module are gated to) a variadic call without variadic arguments passes the named ones
+//! exactly like a non-variadic call, so a five-argument `extern "C"` function transmuted to the logger type
+//! receives them. The recorder prints the format as printf would (`%%` -> `%`) and records a marker if the
+//! format holds a conversion, which would read an argument that is not there.
 #![allow(dead_code)]
 
 use backlash::fmi2::ffi::*;
@@ -20,24 +22,30 @@ pub struct Entry {
 
 pub type Sink = Mutex<Vec<Entry>>;
 
-type FixedLogger = unsafe extern "C" fn(
-    Fmi2ComponentEnvironment,
-    Fmi2String,
-    Fmi2StatusC,
-    Fmi2String,
-    Fmi2String,
-    Fmi2String,
-);
+type FixedLogger =
+    unsafe extern "C" fn(Fmi2ComponentEnvironment, Fmi2String, Fmi2StatusC, Fmi2String, Fmi2String);
 
-/// The logger as the layer calls it: "%s" and the text (see the module documentation). Never panics (a
-/// panic cannot unwind out of an `extern "C"` function).
+/// What printf prints for `format` with no argument, or `None` if it holds a conversion (a '%' not doubled).
+pub fn printf_without_arguments(format: &str) -> Option<String> {
+    let mut out = String::with_capacity(format.len());
+    let mut chars = format.chars();
+    while let Some(c) = chars.next() {
+        if c == '%' && chars.next() != Some('%') {
+            return None;
+        }
+        out.push(c);
+    }
+    Some(out)
+}
+
+/// The logger as the layer calls it (see the module documentation). Never panics (a panic cannot unwind out
+/// of an `extern "C"` function).
 pub unsafe extern "C" fn record(
     env: Fmi2ComponentEnvironment,
     instance: Fmi2String,
     status: Fmi2StatusC,
     category: Fmi2String,
     format: Fmi2String,
-    text: Fmi2String,
 ) {
     let s = |p: *const c_char| {
         if p.is_null() {
@@ -48,11 +56,8 @@ pub unsafe extern "C" fn record(
         }
     };
     let format = s(format);
-    let message = if format == "%s" {
-        s(text)
-    } else {
-        format!("<format is {format:?}, not \"%s\">")
-    };
+    let message = printf_without_arguments(&format)
+        .unwrap_or_else(|| format!("<format {format:?} has a conversion without its argument>"));
     if env.is_null() {
         return;
     }
@@ -69,8 +74,8 @@ pub unsafe extern "C" fn record(
 }
 
 pub fn logger() -> Fmi2CallbackLogger {
-    // SAFETY: on x86_64 SysV a call through the variadic type with one vararg
-    // is ABI-identical to a call of this six-argument function.
+    // SAFETY: on x86_64 SysV a call through the variadic type with no vararg
+    // is ABI-identical to a call of this five-argument function.
     Some(unsafe {
         std::mem::transmute::<
             FixedLogger,

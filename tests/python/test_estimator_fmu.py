@@ -125,9 +125,11 @@ def test_one_sample_per_step(estimator_fmu, unzipped):
     s.enterInitializationMode()
     s.exitInitializationMode()
     s.doStep(0.0, 0.01)
-    with pytest.raises(FMICallException):
-        s.doStep(0.01, 0.02)
-    assert "at most 1 sample(s) per communication step" in LOG.lines[-1][2]
+    with pytest.raises(FMICallException) as info:
+        s.doStep(0.01, 0.02)  # reaches t = 0.02 and 0.03: cut at 0.02
+    assert info.value.status == 2  # fmi2Discard
+    assert "takes at most 1 per step, so it stopped at t = 0.02" in LOG.lines[-1][2]
+    assert s.getRealStatus(2) == 0.02  # fmi2LastSuccessfulTime
     s.freeInstance()
 
 

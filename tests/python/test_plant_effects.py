@@ -165,9 +165,27 @@ def test_out_of_range_switches_are_refused_when_set(plant_fmu, name, value):
         shutil.rmtree(d, ignore_errors=True)
 
 
+@pytest.mark.parametrize("name,value", [("k_e", 0.0), ("noise_phi", 1.0), ("noise_phi", -1.0)])
+def test_bench_values_outside_the_declared_range_are_refused_when_set(plant_fmu, name, value):
+    """The declared range is the accepted one: k_e >= 1e-12, |noise_phi| <= 0.999999."""
+    from fmpy import extract
+    import shutil
+
+    d = extract(plant_fmu)
+    try:
+        s, vr = _slave(plant_fmu, d)
+        s.setupExperiment(startTime=0.0)
+        with pytest.raises(Exception):
+            s.setReal([vr[name]], [value])
+        assert name in LOG.lines[-1][2], LOG.lines[-1]
+        s.reset()
+        s.setReal([vr[name]], [0.999999 if name == "noise_phi" else 1e-12])
+        s.freeInstance()
+    finally:
+        shutil.rmtree(d, ignore_errors=True)
+
+
 @pytest.mark.parametrize("ints,reals,reason", [
-    ({"friction": 1}, {"k_e": 0.0}, "k_e"),
-    ({}, {"noise_phi": 1.0}, "noise_phi"),
     ({"saturation": 1}, {"sat_lo": 2.0, "sat_hi": 1.0}, "sat_lo"),
     ({"border": 1}, {"fa1": 1.0, "fd1": 1.0, "c1_rate": 0.1}, "c1_rate"),
     ({"border": 1, "friction": 2}, {"fa1": 1.0, "fd1": 1.0}, "contact friction"),
