@@ -1302,3 +1302,56 @@ fn communication_time_stays_finite() {
         }
     }
 }
+
+/// Restore `forged` into a fresh instance in step complete: whether it was applied.
+fn forged_state_applies(kind: Kind, forged: &str) -> bool {
+    let mut f = drive(kind, Reach::StepComplete, "forged");
+    let mut s: Fmi2FmuState = null_mut();
+    let r = unsafe {
+        fmi2DeSerializeFMUstate(f.c, forged.as_ptr() as *const c_char, forged.len(), &mut s)
+    };
+    if r != OK {
+        return false;
+    }
+    let r2 = unsafe { fmi2SetFMUstate(f.c, s) };
+    f.free_own_state(s);
+    r2 == OK
+}
+
+/// The donor stood at t = 1 after one sample. A state whose sample count disagrees with its clock (as no
+/// step leaves it) would make the next step sample the wrong number of instants: it is refused.
+#[test]
+fn deserialized_state_whose_clock_and_samples_disagree_is_refused() {
+    for kind in Kind::ALL {
+        let text = String::from_utf8(Donor::new(kind).bytes.clone()).unwrap();
+        assert!(text.contains(r#""samples":1,"#), "{text}");
+        assert!(
+            forged_state_applies(kind, &text),
+            "{kind:?}: the donor's own state"
+        );
+        for bad in ["0", "2", "18446744073709551615"] {
+            let forged = text.replace(r#""samples":1,"#, &format!(r#""samples":{bad},"#));
+            assert!(
+                !forged_state_applies(kind, &forged),
+                "{kind:?}: a state with samples = {bad} at time 1 was accepted"
+            );
+        }
+    }
+}
+
+/// A state carrying a parameter outside its declared range would leave the instance refusing to set the
+/// parameter's own value: it is refused.
+#[test]
+fn deserialized_state_with_a_parameter_out_of_range_is_refused() {
+    for (kind, field, bad) in [
+        (Kind::Plant, r#""saturation":0"#, r#""saturation":7"#),
+        (Kind::Estimator, r#""na":2"#, r#""na":99"#),
+    ] {
+        let text = String::from_utf8(Donor::new(kind).bytes.clone()).unwrap();
+        assert!(text.contains(field), "{text}");
+        assert!(
+            !forged_state_applies(kind, &text.replacen(field, bad, 1)),
+            "{kind:?}: a state with {bad} was accepted"
+        );
+    }
+}

@@ -185,7 +185,56 @@ fn parse_state<M: Model>(bytes: &[u8]) -> Result<Envelope<M>, String> {
     env.model
         .check_restored()
         .map_err(|e| format!("the FMU state is inconsistent: {e}"))?;
+    check_clock(&env.layer, env.model.sample_period())?;
+    for (i, v) in M::VARIABLES.iter().enumerate() {
+        if v.causality != Causality::Output {
+            check_value(v, &env.model.get(M::var(i)))
+                .map_err(|e| format!("the FMU state is inconsistent: {e}"))?;
+        }
+    }
     Ok(env)
+}
+
+/// A value the variable `v` may take: a finite Real or Integer within the XML's min and max.
+fn check_value(v: &VarInfo, value: &Value) -> Result<(), String> {
+    if let Value::Real(x) = value
+        && !x.is_finite()
+    {
+        return Err(format!("'{}' = {x} is not a finite number", v.name));
+    }
+    let x = value.as_real();
+    if matches!(value, Value::Real(_) | Value::Integer(_)) {
+        if let Some(lo) = v.min
+            && x < lo
+        {
+            return Err(format!("'{}' = {x} is below its minimum {lo}", v.name));
+        }
+        if let Some(hi) = v.max
+            && x > hi
+        {
+            return Err(format!("'{}' = {x} is above its maximum {hi}", v.name));
+        }
+    }
+    Ok(())
+}
+
+/// The clock and the sample count of a layer state must agree as [`Instance::do_step`] leaves them: the
+/// clock stands at or after instant t_k (within the time tolerance) and before t_{k+1}, which any step
+/// ending there would have reached.
+fn check_clock(l: &LayerState, ts: f64) -> Result<(), String> {
+    let since = l.time - l.start_time;
+    let (k, next) = (
+        l.samples as f64 * ts,
+        l.samples.saturating_add(1) as f64 * ts,
+    );
+    if since < k - time_tolerance(l.start_time + k, ts) || since >= next {
+        return Err(format!(
+            "the FMU state is inconsistent: its clock {} is not between sample instant {} and the next one \
+             (start time {}, Ts = {ts})",
+            l.time, l.samples, l.start_time
+        ));
+    }
+    Ok(())
 }
 
 /// Indices of the input variables, in the order of the variable table.
@@ -636,24 +685,7 @@ impl Instance {
                 }
                 _ => {}
             }
-            if let Value::Real(x) = value
-                && !x.is_finite()
-            {
-                return Err(format!("'{}' = {x} is not a finite number", v.name));
-            }
-            let x = value.as_real();
-            if matches!(value, Value::Real(_) | Value::Integer(_)) {
-                if let Some(lo) = v.min
-                    && x < lo
-                {
-                    return Err(format!("'{}' = {x} is below its minimum {lo}", v.name));
-                }
-                if let Some(hi) = v.max
-                    && x > hi
-                {
-                    return Err(format!("'{}' = {x} is above its maximum {hi}", v.name));
-                }
-            }
+            check_value(v, value)?;
         }
         for (k, &i) in idx.iter().enumerate() {
             self.slave.set(i, value(k)?);
