@@ -41,7 +41,8 @@ use crate::stats::{quantile, std_dev};
 /// One simulated record.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scenario {
-    pub effect: Option<EffectId>,
+    /// The effects switched on (empty: a clean record).
+    pub present: Vec<EffectId>,
     pub seed: u64,
     /// The true plant (its delay or orders may exceed the declared ones).
     pub params: PlantParams,
@@ -89,155 +90,43 @@ fn stable(a: &[f64]) -> bool {
 
 /// A record of `n` samples with `effect` (or none) under `seed`.
 pub fn scenario(effect: Option<EffectId>, seed: u64, n: usize) -> Scenario {
-    let tag = effect.map_or(0, |e| {
-        1 + EffectId::ALL.iter().position(|x| *x == e).unwrap_or(0) as u64
+    scenario_with(effect.as_slice(), seed, n)
+}
+
+/// A record of `n` samples with every effect of `present` switched on together (none: a clean record),
+/// each drawn as for a single-effect record; the magnitudes depend on the seed and on the set.
+pub fn scenario_with(present: &[EffectId], seed: u64, n: usize) -> Scenario {
+    // One effect keeps the single-effect records' generator (their check seeds stay what they were).
+    let tag = present.iter().rev().fold(0u64, |t, e| {
+        (t << 8) | (1 + EffectId::ALL.iter().position(|x| x == e).unwrap_or(0) as u64)
     });
     let mut d = Draw(ChaCha8Rng::seed_from_u64(
-        seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (tag << 56),
+        seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (tag << 56) ^ ((tag >> 8) << 40),
     ));
     let u = paper_input(n, seed);
-    let mut params = PlantParams::PAPER;
-    let clean = Plant::simulate(params, &u).expect("the paper plant is valid");
-    let w0: Vec<f64> = clean.iter().map(|o| o.w).collect();
-    let x0: Vec<f64> = clean.iter().map(|o| o.x).collect();
-    let (std_w, std_x) = (std_dev(&w0), std_dev(&x0));
-    let mut e = Effects::default();
-    let mut snr = d.uniform(20.0, 50.0);
-    let mut fixed_noise: Option<f64> = None;
-    let bl = params.backlash;
-    let description = match effect {
-        None => "clean".to_string(),
-        Some(EffectId::GapDrift) => {
-            let (g1, g2) = (d.uniform(0.3, 0.8), d.uniform(0.3, 0.8));
-            let span = (n - 1) as f64;
-            e.gap_drift = Some(GapDrift {
-                c1_rate: bl.c1 * g1 / span,
-                c2_rate: bl.c2 * g2 / span,
-            });
-            format!(
-                "c1 +{:.0}%, c2 +{:.0}% over the record",
-                100.0 * g1,
-                100.0 * g2
-            )
-        }
-        Some(EffectId::CurvedBorders) => {
-            let s_ref = 2.0 * std_x;
-            let mut c = CurvedBorders::default();
-            for _ in 0..100 {
-                let (m1, m2) = (bl.m1, bl.m2);
-                c = CurvedBorders {
-                    upper: [
-                        d.sign() * d.uniform(0.05, 0.15) * m1 / s_ref,
-                        d.sign() * d.uniform(0.02, 0.08) * m1 / (s_ref * s_ref),
-                    ],
-                    lower: [
-                        d.sign() * d.uniform(0.05, 0.15) * m2 / s_ref,
-                        d.sign() * d.uniform(0.02, 0.08) * m2 / (s_ref * s_ref),
-                    ],
-                };
-                let increasing = (-30..=30).all(|i| {
-                    let s = i as f64 / 10.0 * std_x;
-                    m1 + 2.0 * c.upper[0] * s + 3.0 * c.upper[1] * s * s > 0.2 * m1
-                        && m2 + 2.0 * c.lower[0] * s + 3.0 * c.lower[1] * s * s > 0.2 * m2
-                });
-                if increasing {
-                    break;
-                }
-            }
-            e.curved_borders = Some(c);
-            format!(
-                "upper [{:.3}, {:.4}], lower [{:.3}, {:.4}]",
-                c.upper[0], c.upper[1], c.lower[0], c.lower[1]
-            )
-        }
-        Some(EffectId::ExtraDelay) => {
-            let extra = 1 + (d.uniform(0.0, 3.0) as usize).min(2);
-            params.arx.delay += extra;
-            format!("true delay {}", params.arx.delay)
-        }
-        Some(EffectId::LinearOrder) => {
-            if d.uniform(0.0, 1.0) < 0.5 {
-                params.arx.nb = 1;
-                params.arx.b[1] = d.sign() * d.uniform(0.3, 0.6) * params.arx.b[0];
-                format!("b1 = {:.3}", params.arx.b[1])
-            } else {
-                params.arx.na = 3;
-                let mut a3 = d.sign() * d.uniform(0.1, 0.25);
-                if !stable(&[params.arx.a[0], params.arx.a[1], a3]) {
-                    a3 = -a3;
-                }
-                params.arx.a[2] = a3;
-                format!("a3 = {a3:.3}")
-            }
-        }
-        Some(EffectId::ColouredNoise) => {
-            let phi = d.uniform(0.5, 0.9);
-            snr = d.uniform(10.0, 30.0);
-            e.coloured_noise = Some(ColouredNoise { phi });
-            format!("AR(1) phi {phi:.2}")
-        }
-        Some(EffectId::Saturation) => {
-            let (qh, ql) = (d.uniform(0.85, 0.95), d.uniform(0.05, 0.15));
-            let before = d.uniform(0.0, 1.0) < 0.5;
-            e.saturation = Some(Saturation {
-                lo: quantile(&w0, ql).unwrap_or(0.0),
-                hi: quantile(&w0, qh).unwrap_or(0.0),
-                before_noise: before,
-            });
-            format!(
-                "clipped at the {:.0}% / {:.0}% quantiles, {}",
-                100.0 * ql,
-                100.0 * qh,
-                if before {
-                    "end stop (before the noise)"
-                } else {
-                    "sensor range"
-                }
-            )
-        }
-        Some(EffectId::PeriodicDisturbance) => {
-            let rel = d.uniform(0.5, 2.0);
-            let omega = d.uniform(0.05, 3.0);
-            let phase = d.uniform(0.0, 2.0 * std::f64::consts::PI);
-            let noise = std_w / snr;
-            e.periodic = Some(Periodic {
-                amplitude: rel * noise,
-                omega,
-                phase,
-            });
-            format!("amplitude {rel:.2} noise std, omega {omega:.3} rad/sample")
-        }
-        Some(EffectId::Quantization) => {
-            let step = d.uniform(0.1, 0.3) * std_w;
-            let ratio = d.uniform(6.0, 20.0);
-            let offset = d.uniform(0.0, step);
-            fixed_noise = Some(step / ratio);
-            e.quantization = Some(Quantization { step, offset });
-            format!("step {:.3} std(w), noise step/{ratio:.1}", step / std_w)
-        }
-        Some(EffectId::Friction) => {
-            let k_e = d.uniform(0.5, 2.0);
-            let half =
-                0.5 * (quantile(&w0, 1.0).unwrap_or(0.0) - quantile(&w0, 0.0).unwrap_or(0.0));
-            let (fp, fm) = (d.uniform(0.3, 0.7), d.uniform(0.3, 0.7));
-            let form = if d.uniform(0.0, 1.0) < 0.5 {
-                FrictionForm::Series
-            } else {
-                FrictionForm::Contact
-            };
-            e.friction = Some(Friction {
-                k_e,
-                f_plus: fp * k_e * half,
-                f_minus: fm * k_e * half,
-                form,
-            });
-            format!(
-                "{form:?} form, k_e {k_e:.2}, slip at +{:.0}% / -{:.0}% of the elastic range",
-                100.0 * fp,
-                100.0 * fm
-            )
-        }
+    let clean = Plant::simulate(PlantParams::PAPER, &u).expect("the paper plant is valid");
+    let mut b = Bench {
+        params: PlantParams::PAPER,
+        effects: Effects::default(),
+        snr: d.uniform(20.0, 50.0),
+        fixed_noise: None,
+        w0: clean.iter().map(|o| o.w).collect(),
+        x0: clean.iter().map(|o| o.x).collect(),
+        n,
     };
+    let descriptions: Vec<String> = present.iter().map(|&e| b.add(e, &mut d)).collect();
+    let description = if present.is_empty() {
+        "clean".to_string()
+    } else {
+        descriptions.join("; ")
+    };
+    let Bench {
+        mut params,
+        effects: e,
+        snr,
+        fixed_noise,
+        ..
+    } = b;
     params.noise_std = 0.0;
     let noise_free = simulate_with_effects(
         &params,
@@ -255,7 +144,7 @@ pub fn scenario(effect: Option<EffectId>, seed: u64, n: usize) -> Scenario {
     let out = simulate_with_effects(&params, &e, &u, params.noise_seed)
         .expect("bench parameters are valid");
     Scenario {
-        effect,
+        present: present.to_vec(),
         seed,
         params,
         effects: e,
@@ -264,6 +153,173 @@ pub fn scenario(effect: Option<EffectId>, seed: u64, n: usize) -> Scenario {
         f,
         u,
         description: format!("{description}; noise std {:.4}", params.noise_std),
+    }
+}
+
+/// The effects of a record in words: "clean", or their names joined by " + ".
+pub fn names(present: &[EffectId]) -> String {
+    if present.is_empty() {
+        "clean".into()
+    } else {
+        present
+            .iter()
+            .map(|e| e.as_str())
+            .collect::<Vec<_>>()
+            .join(" + ")
+    }
+}
+
+/// A record being set up: the plant, its effects and noise level, and the clean plant's signals.
+struct Bench {
+    params: PlantParams,
+    effects: Effects,
+    snr: f64,
+    fixed_noise: Option<f64>,
+    w0: Vec<f64>,
+    x0: Vec<f64>,
+    n: usize,
+}
+
+impl Bench {
+    /// Switch `effect` on with magnitudes drawn from `d`; returns them in words.
+    fn add(&mut self, effect: EffectId, d: &mut Draw) -> String {
+        let (w0, n) = (&self.w0, self.n);
+        let (std_w, std_x) = (std_dev(w0), std_dev(&self.x0));
+        let bl = self.params.backlash;
+        let params = &mut self.params;
+        let e = &mut self.effects;
+        match effect {
+            EffectId::GapDrift => {
+                let (g1, g2) = (d.uniform(0.3, 0.8), d.uniform(0.3, 0.8));
+                let span = (n - 1) as f64;
+                e.gap_drift = Some(GapDrift {
+                    c1_rate: bl.c1 * g1 / span,
+                    c2_rate: bl.c2 * g2 / span,
+                });
+                format!(
+                    "c1 +{:.0}%, c2 +{:.0}% over the record",
+                    100.0 * g1,
+                    100.0 * g2
+                )
+            }
+            EffectId::CurvedBorders => {
+                let s_ref = 2.0 * std_x;
+                let mut c = CurvedBorders::default();
+                for _ in 0..100 {
+                    let (m1, m2) = (bl.m1, bl.m2);
+                    c = CurvedBorders {
+                        upper: [
+                            d.sign() * d.uniform(0.05, 0.15) * m1 / s_ref,
+                            d.sign() * d.uniform(0.02, 0.08) * m1 / (s_ref * s_ref),
+                        ],
+                        lower: [
+                            d.sign() * d.uniform(0.05, 0.15) * m2 / s_ref,
+                            d.sign() * d.uniform(0.02, 0.08) * m2 / (s_ref * s_ref),
+                        ],
+                    };
+                    let increasing = (-30..=30).all(|i| {
+                        let s = i as f64 / 10.0 * std_x;
+                        m1 + 2.0 * c.upper[0] * s + 3.0 * c.upper[1] * s * s > 0.2 * m1
+                            && m2 + 2.0 * c.lower[0] * s + 3.0 * c.lower[1] * s * s > 0.2 * m2
+                    });
+                    if increasing {
+                        break;
+                    }
+                }
+                e.curved_borders = Some(c);
+                format!(
+                    "upper [{:.3}, {:.4}], lower [{:.3}, {:.4}]",
+                    c.upper[0], c.upper[1], c.lower[0], c.lower[1]
+                )
+            }
+            EffectId::ExtraDelay => {
+                let extra = 1 + (d.uniform(0.0, 3.0) as usize).min(2);
+                params.arx.delay += extra;
+                format!("true delay {}", params.arx.delay)
+            }
+            EffectId::LinearOrder => {
+                if d.uniform(0.0, 1.0) < 0.5 {
+                    params.arx.nb = 1;
+                    params.arx.b[1] = d.sign() * d.uniform(0.3, 0.6) * params.arx.b[0];
+                    format!("b1 = {:.3}", params.arx.b[1])
+                } else {
+                    params.arx.na = 3;
+                    let mut a3 = d.sign() * d.uniform(0.1, 0.25);
+                    if !stable(&[params.arx.a[0], params.arx.a[1], a3]) {
+                        a3 = -a3;
+                    }
+                    params.arx.a[2] = a3;
+                    format!("a3 = {a3:.3}")
+                }
+            }
+            EffectId::ColouredNoise => {
+                let phi = d.uniform(0.5, 0.9);
+                self.snr = d.uniform(10.0, 30.0);
+                e.coloured_noise = Some(ColouredNoise { phi });
+                format!("AR(1) phi {phi:.2}")
+            }
+            EffectId::Saturation => {
+                let (qh, ql) = (d.uniform(0.85, 0.95), d.uniform(0.05, 0.15));
+                let before = d.uniform(0.0, 1.0) < 0.5;
+                e.saturation = Some(Saturation {
+                    lo: quantile(w0, ql).unwrap_or(0.0),
+                    hi: quantile(w0, qh).unwrap_or(0.0),
+                    before_noise: before,
+                });
+                format!(
+                    "clipped at the {:.0}% / {:.0}% quantiles, {}",
+                    100.0 * ql,
+                    100.0 * qh,
+                    if before {
+                        "end stop (before the noise)"
+                    } else {
+                        "sensor range"
+                    }
+                )
+            }
+            EffectId::PeriodicDisturbance => {
+                let rel = d.uniform(0.5, 2.0);
+                let omega = d.uniform(0.05, 3.0);
+                let phase = d.uniform(0.0, 2.0 * std::f64::consts::PI);
+                let noise = std_w / self.snr;
+                e.periodic = Some(Periodic {
+                    amplitude: rel * noise,
+                    omega,
+                    phase,
+                });
+                format!("amplitude {rel:.2} noise std, omega {omega:.3} rad/sample")
+            }
+            EffectId::Quantization => {
+                let step = d.uniform(0.1, 0.3) * std_w;
+                let ratio = d.uniform(6.0, 20.0);
+                let offset = d.uniform(0.0, step);
+                self.fixed_noise = Some(step / ratio);
+                e.quantization = Some(Quantization { step, offset });
+                format!("step {:.3} std(w), noise step/{ratio:.1}", step / std_w)
+            }
+            EffectId::Friction => {
+                let k_e = d.uniform(0.5, 2.0);
+                let half =
+                    0.5 * (quantile(w0, 1.0).unwrap_or(0.0) - quantile(w0, 0.0).unwrap_or(0.0));
+                let (fp, fm) = (d.uniform(0.3, 0.7), d.uniform(0.3, 0.7));
+                let form = if d.uniform(0.0, 1.0) < 0.5 {
+                    FrictionForm::Series
+                } else {
+                    FrictionForm::Contact
+                };
+                e.friction = Some(Friction {
+                    k_e,
+                    f_plus: fp * k_e * half,
+                    f_minus: fm * k_e * half,
+                    form,
+                });
+                format!(
+                    "{form:?} form, k_e {k_e:.2}, slip at +{:.0}% / -{:.0}% of the elastic range",
+                    100.0 * fp,
+                    100.0 * fm
+                )
+            }
+        }
     }
 }
 
@@ -294,7 +350,7 @@ mod tests {
             .collect();
         format!(
             "{:>22} seed {:>5}: -> {:>22} before {:.4} after {:.4} [{:.2}s, rounds {}] {} | {}",
-            s.effect.map_or("clean".into(), |e| e.to_string()),
+            names(&s.present),
             s.seed,
             d.effect_id().map_or("null".into(), |e| e.to_string()),
             d.base_heldout_rmse,
@@ -558,7 +614,12 @@ mod tests {
                     for c in &d.candidates {
                         println!(
                             "      cand {} heldout {:.4} z {:.2} dBIC {:.1} fit {:.4} {:?}",
-                            c.id, c.heldout_rmse, c.heldout_z, c.delta_bic, c.fit_rmse, c.model.ext
+                            c.id,
+                            c.heldout_rmse,
+                            c.heldout_z,
+                            c.delta_bic,
+                            c.fit_rmse,
+                            c.model.exts
                         );
                     }
                     println!("      base {:?}", d.base.base);
@@ -642,7 +703,7 @@ mod tests {
                     c.heldout_z,
                     c.delta_bic,
                     c.fit_rmse,
-                    c.model.ext,
+                    c.model.exts,
                     c.model.base
                 );
             }

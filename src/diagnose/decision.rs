@@ -12,8 +12,15 @@ pub const Z_THRESHOLD: f64 = 1.645;
 /// The decision rule, as written into every report.
 pub const DECISION_RULE: &str = "an extension is supported when its held-out error is at least 1% lower than the \
 current model's, the fall is significant (one-sided Diebold-Mariano z above the threshold, 5%), AND its BIC on \
-the fit part is lower; among supported deterministic extensions the lowest BIC wins; coloured-noise (judged by \
+the fit part is lower; among supported deterministic extensions the lowest BIC wins, except that a supported \
+extra-delay wins over linear-order when that one's BIC is lower by less than 10 (a longer delay adds no \
+coefficient, and one more coefficient with a leading one near zero is that delay); coloured-noise (judged by \
 one-step prediction) is chosen only when no deterministic extension is supported; otherwise the answer is null";
+
+/// The BIC difference below which linear-order is no strong evidence against extra-delay (a difference of 10
+/// is "very strong" on Kass and Raftery's scale). One more b coefficient whose leading one is near zero is a
+/// longer delay; a supported extra-delay then wins, as the model without the extra coefficient.
+pub const ALIAS_BIC: f64 = 10.0;
 
 /// The evidence on one candidate.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -112,7 +119,20 @@ pub fn choose(candidates: &[(EffectId, bool, f64)]) -> Option<usize> {
             .min_by(|a, b| a.1.2.total_cmp(&b.1.2))
             .map(|(i, _)| i)
     };
-    best_of(true).or_else(|| best_of(false))
+    let delay = candidates
+        .iter()
+        .position(|(id, ok, _)| *id == EffectId::ExtraDelay && *ok);
+    match (best_of(true), delay) {
+        (Some(b), Some(d)) if candidates[b].0 == EffectId::LinearOrder => {
+            Some(if candidates[d].2 < candidates[b].2 + ALIAS_BIC {
+                d
+            } else {
+                b
+            })
+        }
+        (Some(b), _) => Some(b),
+        (None, _) => best_of(false),
+    }
 }
 
 #[cfg(test)]
@@ -214,5 +234,27 @@ mod tests {
             ]),
             Some(1)
         );
+    }
+
+    #[test]
+    fn extra_delay_wins_over_a_linear_order_that_is_not_strongly_better() {
+        use EffectId::*;
+        let c = |lo: f64, de: f64, de_ok: bool| {
+            choose(&[
+                (LinearOrder, true, lo),
+                (ExtraDelay, de_ok, de),
+                (Saturation, true, -50.0),
+            ])
+        };
+        // Linear-order better by less than 10: the delay.
+        assert_eq!(c(-104.5, -100.0, true), Some(1));
+        assert_eq!(c(-109.9, -100.0, true), Some(1));
+        // By 10 or more, or the delay not supported: linear-order.
+        assert_eq!(c(-110.0, -100.0, true), Some(0));
+        assert_eq!(c(-104.5, -100.0, false), Some(0));
+        // The rule only arbitrates between those two: a better third candidate still wins.
+        assert_eq!(c(-40.0, -30.0, true), Some(2));
+        // The delay better anyway.
+        assert_eq!(c(-100.0, -104.5, true), Some(1));
     }
 }

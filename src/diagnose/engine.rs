@@ -67,7 +67,7 @@ use serde::Serialize;
 use super::catalogue::{EffectId, tests as test_names};
 use super::decision::{self, Evidence};
 use super::fit::{LmOptions, bic};
-use super::model::{BaseModel, Extension, Model, Objective, Simulation};
+use super::model::{BaseModel, Model, Objective, Simulation};
 pub use super::problem::EXPLORE_SAMPLES;
 use super::problem::{Problem, fit_linear, fit_plain, sim_limit};
 use super::residual::{self, Verdict};
@@ -98,6 +98,8 @@ pub struct DiagnoseConfig {
     /// Wall-clock budget of the whole diagnosis; candidates not fitted when it is spent are listed as not
     /// tried. Default 300 s.
     pub time_budget: Duration,
+    /// The most effects the loop adds (1: the first round only). Default 3.
+    pub max_effects: usize,
 }
 
 impl DiagnoseConfig {
@@ -121,6 +123,7 @@ impl DiagnoseConfig {
             z_threshold: decision::Z_THRESHOLD,
             lm: LmOptions::default(),
             time_budget: Duration::from_secs(300),
+            max_effects: 3,
         }
     }
 }
@@ -144,6 +147,8 @@ pub enum DiagnoseError {
     NonFinite(usize),
     #[error("the time budget must be positive")]
     Budget,
+    #[error("the most effects to add ({0}) must be between 1 and {max}", max = EffectId::ALL.len())]
+    MaxEffects(usize),
 }
 
 /// The fewest samples a structure needs: 100 plus 20 per order and delay sample.
@@ -222,6 +227,28 @@ pub struct BacklashSupport {
     pub verdict: String,
 }
 
+/// One round of the loop after the first: the model it started from (the previous round's winner) and what
+/// its residual showed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Round {
+    /// The model this round extends, with its held-out free-run RMSE and BIC.
+    pub current: Model,
+    pub current_heldout_rmse: f64,
+    pub current_bic: f64,
+    pub found: Found,
+}
+
+/// What a round found: the residual tests on the current model, the candidates they pointed to, fitted on
+/// top of it and judged, and the winner.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Found {
+    pub tests: Vec<TestResult>,
+    pub set_aside: Vec<String>,
+    pub candidates: Vec<Candidate>,
+    pub not_tried: Vec<EffectId>,
+    pub chosen: Option<usize>,
+}
+
 /// The result of [`diagnose`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Diagnosis {
@@ -252,6 +279,11 @@ pub struct Diagnosis {
     /// Number of fits of the plain model needed (a winner whose base part fitted the plain model better
     /// triggers a refit from there).
     pub base_rounds: usize,
+    /// The rounds after the first (each extends the previous round's winner), in order; the last one found
+    /// nothing, unless the loop stopped at `max_effects`, after a noise model or at the time budget.
+    pub later: Vec<Round>,
+    /// Why the loop stopped.
+    pub stopped: String,
 }
 
 impl Diagnosis {
@@ -263,9 +295,27 @@ impl Diagnosis {
         self.effect().map(|c| c.id)
     }
 
-    /// Held-out free-run RMSE after: the chosen extension's, or the plain model's for `null`.
-    pub fn after_rmse(&self) -> f64 {
+    /// The effects kept, in order: the first round's winner, then each later round's.
+    pub fn steps(&self) -> Vec<&Candidate> {
         self.effect()
+            .into_iter()
+            .chain(
+                self.later
+                    .iter()
+                    .filter_map(|r| r.found.chosen.map(|i| &r.found.candidates[i])),
+            )
+            .collect()
+    }
+
+    /// The final model: the last effect kept on top of the others, or the plain model.
+    pub fn final_model(&self) -> &Model {
+        self.steps().last().map_or(&self.base, |c| &c.model)
+    }
+
+    /// Held-out free-run RMSE after: the final model's (the plain model's for `null`).
+    pub fn after_rmse(&self) -> f64 {
+        self.steps()
+            .last()
             .map_or(self.base_heldout_rmse, |c| c.heldout_rmse)
     }
 
@@ -281,10 +331,7 @@ impl Diagnosis {
         let n = u.len().min(y.len());
         let limit = sim_limit(u, y);
         let before = self.base.simulate(u, n, limit)?;
-        let after = match self.effect() {
-            Some(c) => c.model.simulate(u, n, limit)?.y,
-            None => before.y.clone(),
-        };
+        let after = self.final_model().simulate(u, n, limit)?.y;
         Some(CrossValidation {
             samples: n,
             y_std: std_dev(&y[..n]),
@@ -348,12 +395,12 @@ pub fn diagnose(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<Diagnosis,
         rounds += 1;
         let base = fit_plain(&problem, s, cfg.restarts, cfg.seed, &linear, &extra_starts)
             .ok_or(DiagnoseError::NoFit)?;
-        let d = diagnose_from(&mut problem, cfg, base.0, &linear, choice.clone(), rounds)?;
+        let mut d = diagnose_from(&mut problem, cfg, base.0, &linear, choice.clone(), rounds)?;
         // A winner whose own base part fits the plain model better means the plain fit stopped in a local
         // minimum: refit from there (at most twice) so that "before" is honest.
         if rounds < 3
             && let Some(c) = d.effect()
-            && c.model.ext != Extension::None
+            && !c.model.exts.is_empty()
         {
             let start = Model::plain(c.model.base.clone());
             if let Some((polished, cost)) =
@@ -364,7 +411,79 @@ pub fn diagnose(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<Diagnosis,
                 continue;
             }
         }
+        extend(&problem, cfg, &mut d);
         return Ok(d);
+    }
+}
+
+/// The loop after the first round: while the last round kept an effect, the extended model becomes the
+/// current one; its residual is tested, the candidates it points to are fitted on top of it (every
+/// parameter, old and new, jointly) and judged by the same rule. Stops when nothing is supported, after
+/// `max_effects` effects, after a noise model (it describes what the deterministic part leaves) or when
+/// the time budget is spent.
+fn extend(p: &Problem, cfg: &DiagnoseConfig, d: &mut Diagnosis) {
+    let Some(first) = d.effect() else {
+        d.stopped = "no effect is supported by the plain model's residual".into();
+        return;
+    };
+    let mut kept = vec![first.id];
+    let mut last = first.clone();
+    loop {
+        if kept.len() >= cfg.max_effects {
+            d.stopped = format!(
+                "{} effects found: the most allowed (--max-effects)",
+                kept.len()
+            );
+            return;
+        }
+        if last.model.noise().is_some() {
+            d.stopped =
+                "a noise model was kept: it describes what the deterministic part leaves".into();
+            return;
+        }
+        if p.out_of_time() {
+            d.stopped = "the time budget is spent".into();
+            return;
+        }
+        let penalty: f64 = kept.iter().map(|&id| decision::structure_penalty(id)).sum();
+        let e: Vec<f64> = p.y.iter().zip(&last.sim.y).map(|(a, b)| a - b).collect();
+        let cost: f64 = e[..p.n_fit].iter().map(|v| v * v).sum();
+        let found = find(
+            p,
+            cfg,
+            Current {
+                model: &last.model,
+                sim: &last.sim,
+                e: &e,
+                cost,
+                bic: last.bic,
+                penalty,
+                exclude: &kept,
+            },
+        );
+        let next = found.chosen.map(|i| found.candidates[i].clone());
+        d.later.push(Round {
+            current: last.model.clone(),
+            current_heldout_rmse: last.heldout_rmse,
+            current_bic: last.bic,
+            found,
+        });
+        match next {
+            Some(c) => {
+                kept.push(c.id);
+                last = c;
+            }
+            None => {
+                d.stopped = format!(
+                    "no further effect is supported by the residual of the model with {}",
+                    kept.iter()
+                        .map(|id| id.as_str())
+                        .collect::<Vec<_>>()
+                        .join(" + ")
+                );
+                return;
+            }
+        }
     }
 }
 
@@ -407,6 +526,9 @@ fn check_record(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<(), Diagno
     }
     if cfg.time_budget.is_zero() {
         return Err(DiagnoseError::Budget);
+    }
+    if !(1..=EffectId::ALL.len()).contains(&cfg.max_effects) {
+        return Err(DiagnoseError::MaxEffects(cfg.max_effects));
     }
     Ok(())
 }
@@ -494,11 +616,65 @@ fn diagnose_from(
     let linear = linear_fit(p, linear);
     let backlash = backlash_support(p, &base.base, base_heldout_rmse, &linear);
 
+    let found = find(
+        p,
+        cfg,
+        Current {
+            model: &base,
+            sim: &base_sim,
+            e: &e,
+            cost: base_cost,
+            bic: base_bic,
+            penalty: 0.0,
+            exclude: &[],
+        },
+    );
+    Ok(Diagnosis {
+        config: *cfg,
+        n,
+        n_fit,
+        structure,
+        linear,
+        base_k,
+        base_fit_rmse: (base_cost / n_fit as f64).sqrt(),
+        base_bic,
+        base_heldout_rmse,
+        base,
+        base_sim,
+        backlash,
+        tests: found.tests,
+        set_aside: found.set_aside,
+        candidates: found.candidates,
+        not_tried: found.not_tried,
+        chosen: found.chosen,
+        base_rounds: rounds,
+        later: Vec::new(),
+        stopped: String::new(),
+    })
+}
+
+/// The model a round extends, its simulation and residual over the whole record, its fit-part cost and BIC
+/// (with the structure penalties of the effects it has), and the effects not to try again.
+struct Current<'a> {
+    model: &'a Model,
+    sim: &'a Simulation,
+    e: &'a [f64],
+    cost: f64,
+    bic: f64,
+    penalty: f64,
+    exclude: &'a [EffectId],
+}
+
+/// One round: test the current model's residual on the fit part, fit every candidate it points to on top
+/// of the model (on all cores; the result does not depend on the number of threads), judge them, choose.
+fn find(p: &Problem, cfg: &DiagnoseConfig, cur: Current) -> Found {
+    let (u, y, n_fit) = (p.u, p.y, p.n_fit);
+    let e = cur.e;
     let findings = residual_tests(
         &e[..n_fit],
         &u[..n_fit],
         &y[..n_fit],
-        &base_sim,
+        cur.sim,
         n_fit,
         cfg.lags,
     );
@@ -521,6 +697,7 @@ fn diagnose_from(
     let pointed: Vec<(EffectId, Vec<&'static str>)> = EffectId::ALL
         .into_iter()
         .filter(|id| *id != EffectId::PeriodicDisturbance || set_aside.is_empty())
+        .filter(|id| !cur.exclude.contains(id) && cur.model.can_add(*id))
         .map(|id| {
             let by = id
                 .pointing_tests()
@@ -535,19 +712,19 @@ fn diagnose_from(
 
     let held = e[n_fit..].to_vec();
     let mrgia = |na: usize, nb: usize, delay: usize| p.mrgia_start(Structure { na, nb, delay });
-    let pr: &Problem = p;
     let ctx = Context {
-        p: pr,
+        p,
         cfg,
-        base_cost,
-        base_bic,
+        base_cost: cur.cost,
+        base_bic: cur.bic,
+        penalty: cur.penalty,
         base_heldout: &held,
         starts: StartContext {
-            current: &base,
+            current: cur.model,
             u: &u[..n_fit],
             y: &y[..n_fit],
             residual: &e[..n_fit],
-            y_scale: pr.y_scale,
+            y_scale: p.y_scale,
             omega: findings.omega,
             lattice: findings.lattice,
             clip: findings.clip,
@@ -557,7 +734,7 @@ fn diagnose_from(
     let results: Vec<Result<Option<Candidate>, EffectId>> = pointed
         .into_par_iter()
         .map(|(id, by)| {
-            if pr.out_of_time() {
+            if p.out_of_time() {
                 Err(id)
             } else {
                 Ok(ctx.candidate(id, by))
@@ -578,26 +755,13 @@ fn diagnose_from(
         .map(|c| (c.id, c.supported, c.bic))
         .collect();
     let chosen = decision::choose(&judged);
-    Ok(Diagnosis {
-        config: *cfg,
-        n,
-        n_fit,
-        structure,
-        linear,
-        base_k,
-        base_fit_rmse: (base_cost / n_fit as f64).sqrt(),
-        base_bic,
-        base_heldout_rmse,
-        base,
-        base_sim,
-        backlash,
+    Found {
         tests: findings.tests,
         set_aside,
         candidates,
         not_tried,
         chosen,
-        base_rounds: rounds,
-    })
+    }
 }
 
 /// The residual tests' verdicts and what the starts need from them.
@@ -657,6 +821,8 @@ struct Context<'a, 'b> {
     cfg: &'a DiagnoseConfig,
     base_cost: f64,
     base_bic: f64,
+    /// Structure penalties of the effects the current model already has.
+    penalty: f64,
     base_heldout: &'a [f64],
     starts: StartContext<'a>,
 }
@@ -713,7 +879,7 @@ impl Context<'_, '_> {
             Objective::Simulation => (sim_held, None),
         };
         let heldout_z = diebold_mariano(self.base_heldout, &judged);
-        let bic_value = bic(cost, p.n_fit, k) + decision::structure_penalty(id);
+        let bic_value = bic(cost, p.n_fit, k) + self.penalty + decision::structure_penalty(id);
         let delta_bic = bic_value - self.base_bic;
         let judgement = decision::judge(&Evidence {
             before,

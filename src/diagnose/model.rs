@@ -1,9 +1,10 @@
-//! The models the diagnosis fits: the declared pseudo-Wiener model ([`BaseModel`], m1 = 1) and one
-//! catalogue extension ([`Extension`]). The per-sample logic is the test bench's
+//! The models the diagnosis fits: the declared pseudo-Wiener model ([`BaseModel`], m1 = 1) and the
+//! catalogue extensions added to it, in the order they were kept ([`Extension`]). The per-sample logic is the test bench's
 //! ([`crate::plant::effects`]), so a fitted extension and a simulated rig mean exactly the same thing.
 
 use serde::Serialize;
 
+use super::catalogue::EffectId;
 use crate::plant::effects::{
     self, CurvedBorders, Effects, Friction, FrictionForm, GapDrift, Periodic, Quantization,
     Saturation,
@@ -162,6 +163,21 @@ pub enum Extension {
 }
 
 impl Extension {
+    /// The catalogue entry this extension fits (`None` for [`Extension::None`]; extra-delay and
+    /// linear-order change the base model instead).
+    pub fn id(&self) -> Option<EffectId> {
+        Some(match self {
+            Extension::None => return None,
+            Extension::GapDrift { .. } => EffectId::GapDrift,
+            Extension::CurvedBorders { .. } => EffectId::CurvedBorders,
+            Extension::Saturation { .. } => EffectId::Saturation,
+            Extension::Periodic { .. } => EffectId::PeriodicDisturbance,
+            Extension::Quantization { .. } => EffectId::Quantization,
+            Extension::Friction { .. } => EffectId::Friction,
+            Extension::ColouredNoise { .. } => EffectId::ColouredNoise,
+        })
+    }
+
     /// Parameters in the fitted vector.
     pub fn n_fitted(&self) -> usize {
         match self {
@@ -250,6 +266,12 @@ impl Extension {
     /// The deterministic part as test-bench effects (the noise model has none).
     pub fn effects(&self) -> Effects {
         let mut e = Effects::default();
+        self.add_to(&mut e);
+        e
+    }
+
+    /// Switch this extension's deterministic part on in `e`.
+    fn add_to(&self, e: &mut Effects) {
         match self {
             Extension::None | Extension::ColouredNoise { .. } => {}
             Extension::GapDrift { c1_rate, c2_rate } => {
@@ -302,7 +324,6 @@ impl Extension {
                 })
             }
         }
-        e
     }
 }
 
@@ -315,11 +336,12 @@ pub enum Objective {
     Prediction,
 }
 
-/// A base model with one extension.
+/// A base model with the extensions kept so far, in the order they were kept (each catalogue entry at most
+/// once; see [`Model::can_add`] for the ones that do not combine).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Model {
     pub base: BaseModel,
-    pub ext: Extension,
+    pub exts: Vec<Extension>,
 }
 
 /// The model's signals over a record.
@@ -338,28 +360,149 @@ impl Model {
     pub fn plain(base: BaseModel) -> Self {
         Self {
             base,
-            ext: Extension::None,
+            exts: Vec::new(),
         }
     }
 
-    /// The fitted parameter vector: base, then the extension's.
+    /// This model with `ext` added last.
+    pub fn with(&self, ext: Extension) -> Self {
+        let mut m = self.clone();
+        m.exts.push(ext);
+        m
+    }
+
+    /// This model's extensions on another base model.
+    pub fn rebased(&self, base: BaseModel) -> Self {
+        Self {
+            base,
+            exts: self.exts.clone(),
+        }
+    }
+
+    /// The extension fitting catalogue entry `id`, if the model has it.
+    pub fn extension(&self, id: EffectId) -> Option<&Extension> {
+        self.exts.iter().find(|e| e.id() == Some(id))
+    }
+
+    /// The noise model's AR coefficients, if the model has one.
+    pub fn noise(&self) -> Option<&[f64]> {
+        self.exts.iter().find_map(|e| match e {
+            Extension::ColouredNoise { phi } => Some(phi.as_slice()),
+            _ => None,
+        })
+    }
+
+    /// Whether the extension of `id` can be added: each entry once; nothing after a noise model (it
+    /// describes what the deterministic part leaves, so it ends the search); curved borders and friction
+    /// with the play inside its spring never together (that element has straight borders, as the test
+    /// bench's). Extra-delay and linear-order change the base model and combine with everything.
+    pub fn can_add(&self, id: EffectId) -> bool {
+        let has = |i: EffectId| self.extension(i).is_some();
+        !has(id) && self.noise().is_none() && !(id == EffectId::CurvedBorders && self.has_contact())
+    }
+
+    /// Whether `ext` can be added ([`Model::can_add`] for its entry, and no friction with the play inside
+    /// its spring on curved borders).
+    pub fn admits(&self, ext: &Extension) -> bool {
+        let contact = matches!(
+            ext,
+            Extension::Friction {
+                form: FrictionForm::Contact,
+                ..
+            }
+        );
+        ext.id().is_some_and(|id| self.can_add(id))
+            && !(contact && self.extension(EffectId::CurvedBorders).is_some())
+    }
+
+    /// Whether the model has friction with the play inside its spring.
+    pub fn has_contact(&self) -> bool {
+        self.exts.iter().any(|e| {
+            matches!(
+                e,
+                Extension::Friction {
+                    form: FrictionForm::Contact,
+                    ..
+                }
+            )
+        })
+    }
+
+    /// The fitted parameter vector: base, then each extension's in order.
     pub fn pack(&self, time_scale: f64) -> Vec<f64> {
         let mut v = self.base.pack();
-        v.extend(self.ext.pack(time_scale));
+        for e in &self.exts {
+            v.extend(e.pack(time_scale));
+        }
         v
     }
 
     pub fn unpack(&self, th: &[f64], time_scale: f64) -> Self {
-        let nb = self.base.n_params();
-        Self {
-            base: self.base.unpack(&th[..nb]),
-            ext: self.ext.unpack(&th[nb..], time_scale),
-        }
+        let mut at = self.base.n_params();
+        let base = self.base.unpack(&th[..at]);
+        let exts = self
+            .exts
+            .iter()
+            .map(|e| {
+                let n = e.n_fitted();
+                at += n;
+                e.unpack(&th[at - n..at], time_scale)
+            })
+            .collect();
+        Self { base, exts }
     }
 
     /// Parameters counted by the information criterion.
     pub fn n_estimated(&self) -> usize {
-        self.base.n_params() + self.ext.n_estimated()
+        self.base.n_params() + self.exts.iter().map(Extension::n_estimated).sum::<usize>()
+    }
+
+    /// The deterministic part of every extension as test-bench effects.
+    pub fn effects(&self) -> Effects {
+        let mut e = Effects::default();
+        for x in &self.exts {
+            x.add_to(&mut e);
+        }
+        e
+    }
+
+    /// Whether the extensions' own parameters describe a valid element: a non-empty friction slip range
+    /// (and a play of some width inside the spring), saturation levels in order, a positive rounding step.
+    fn extensions_valid(&self) -> bool {
+        let play = self.base.c1 + self.base.c2;
+        self.exts.iter().all(|e| match e {
+            Extension::Friction {
+                f_plus,
+                f_minus,
+                form,
+            } => {
+                // An empty slip range (also NaN) is not a friction element; with the play inside the spring
+                // the play must have a width.
+                let range = f_plus + f_minus;
+                range > 0.0 && !(*form == FrictionForm::Contact && (play.is_nan() || play < 0.0))
+            }
+            Extension::Saturation { lo, hi } => lo <= hi,
+            Extension::Quantization { step, .. } => *step > 0.0 && step.is_finite(),
+            _ => true,
+        })
+    }
+
+    /// The quantizer and its noise level before the rounding, if the model has one.
+    fn reading(&self) -> Option<(Quantization, f64)> {
+        self.exts.iter().find_map(|e| match e {
+            Extension::Quantization {
+                step,
+                offset,
+                sigma,
+            } => Some((
+                Quantization {
+                    step: *step,
+                    offset: *offset,
+                },
+                *sigma,
+            )),
+            _ => None,
+        })
     }
 
     /// Simulate samples `0..n` of the model output into `sim` (reusing its buffers), as a fit sees it.
@@ -375,41 +518,18 @@ impl Model {
         if !(b.m2 > 0.0 && b.m2.is_finite() && b.c1.is_finite() && b.c2.is_finite()) {
             return false;
         }
-        if !is_stable(&b.a) {
+        if !is_stable(&b.a) || !self.extensions_valid() {
             return false;
         }
-        if let Extension::Friction {
-            f_plus,
-            f_minus,
-            form,
-        } = &self.ext
-        {
-            // An empty slip range (also NaN) is not a friction element; with the play inside the spring the
-            // play must have a width and the slopes must be positive (they are stiffnesses).
-            let range = f_plus + f_minus;
-            if range.is_nan() || range <= 0.0 {
-                return false;
-            }
-            let play = b.c1 + b.c2;
-            if *form == FrictionForm::Contact && (play.is_nan() || play < 0.0) {
-                return false;
-            }
-        }
-        if let Extension::Saturation { lo, hi } = &self.ext
-            && (lo.is_nan() || hi.is_nan() || lo > hi)
-        {
-            return false;
-        }
-        let contact = matches!(
-            self.ext,
-            Extension::Friction {
-                form: FrictionForm::Contact,
-                ..
-            }
-        );
+        let contact = self.has_contact();
         let n = n.min(u.len());
         let bl = b.backlash();
-        let eff = self.ext.effects();
+        // The rounding is the expected reading (below), not the bench's plain rounding.
+        let expected = self.reading();
+        let eff = Effects {
+            quantization: None,
+            ..self.effects()
+        };
         let drift = eff.gap_drift.as_ref();
         let curve = eff.curved_borders.as_ref();
         let friction = eff.friction.as_ref();
@@ -419,26 +539,17 @@ impl Model {
                 None => 0.0,
             };
         let sensor_needed = eff.periodic.is_some() || eff.saturation.is_some();
-        let expected = match &self.ext {
-            Extension::Quantization {
-                step,
-                offset,
-                sigma,
-            } => Some((
-                Quantization {
-                    step: *step,
-                    offset: *offset,
-                },
-                *sigma,
-            )),
-            _ => None,
+        let output = |f: f64, k: usize| {
+            let v = if sensor_needed {
+                effects::sensor(&eff, f, 0.0, k as u64)
+            } else {
+                f
+            };
+            match &expected {
+                Some((q, sigma)) => effects::expected_reading(q, v, *sigma),
+                None => v,
+            }
         };
-        if expected
-            .as_ref()
-            .is_some_and(|(q, _)| !(q.step > 0.0 && q.step.is_finite()))
-        {
-            return false;
-        }
         sim.x.clear();
         sim.w.clear();
         sim.y.clear();
@@ -463,14 +574,9 @@ impl Model {
             if let (true, Some(fr)) = (contact, friction) {
                 let blk = drift.map_or(bl, |d| d.at(&bl, k as u64));
                 let (f, z, mode) = effects::contact_step(fr, &blk, x, w_prev);
-                let y = if sensor_needed {
-                    effects::sensor(&eff, f, 0.0, k as u64)
-                } else {
-                    f
-                };
                 sim.x.push(x);
                 sim.w.push(z);
-                sim.y.push(y);
+                sim.y.push(output(f, k));
                 sim.mode.push(mode);
                 w_prev = z;
                 f_prev = f;
@@ -496,16 +602,9 @@ impl Model {
                 Some(fr) => effects::friction_step(fr, f_prev, w - w_prev),
                 None => w,
             };
-            let y = if let Some((q, sigma)) = &expected {
-                effects::expected_reading(q, f, *sigma)
-            } else if sensor_needed {
-                effects::sensor(&eff, f, 0.0, k as u64)
-            } else {
-                f
-            };
             sim.x.push(x);
             sim.w.push(w);
-            sim.y.push(y);
+            sim.y.push(output(f, k));
             sim.mode.push(mode);
             w_prev = w;
             f_prev = f;
@@ -525,8 +624,8 @@ impl Model {
     /// `sum phi_i (y(k-i) - s(k-i))` (s the simulation). Without a noise model the predictor of an
     /// output-error model is its simulation.
     pub fn predict_from(&self, sim: &[f64], y: &[f64]) -> Vec<f64> {
-        match &self.ext {
-            Extension::ColouredNoise { phi } => (0..sim.len())
+        match self.noise() {
+            Some(phi) => (0..sim.len())
                 .map(|k| {
                     let mut p = sim[k];
                     for (i, f) in phi.iter().enumerate() {
@@ -537,7 +636,7 @@ impl Model {
                     p
                 })
                 .collect(),
-            _ => sim.to_vec(),
+            None => sim.to_vec(),
         }
     }
 }
@@ -620,13 +719,24 @@ mod tests {
                 form: FrictionForm::Contact,
             },
         ];
-        for ext in exts {
-            let m = Model {
-                base: paper_base(),
-                ext: ext.clone(),
-            };
+        // Each alone, and every pair that combines (in both orders of adding them).
+        let mut models: Vec<Model> = exts
+            .iter()
+            .map(|e| Model::plain(paper_base()).with(e.clone()))
+            .collect();
+        for a in &exts[1..] {
+            for b in &exts[1..] {
+                let m = Model::plain(paper_base()).with(a.clone());
+                if m.admits(b) {
+                    models.push(m.with(b.clone()));
+                }
+            }
+        }
+        assert!(models.len() > 40, "{}", models.len());
+        for m in models {
             let s = m.simulate(&u, u.len(), 1e9).unwrap();
-            let bench = simulate_with_effects(&p, &ext.effects(), &u, 0).unwrap();
+            let bench = simulate_with_effects(&p, &m.effects(), &u, 0).unwrap();
+            let ext = &m.exts;
             for (k, o) in bench.iter().enumerate() {
                 assert!(
                     (s.y[k] - o.y).abs() < 1e-12,
@@ -641,22 +751,26 @@ mod tests {
 
     #[test]
     fn pack_unpack_round_trip() {
-        let m = Model {
-            base: paper_base(),
-            ext: Extension::GapDrift {
+        let m = Model::plain(paper_base())
+            .with(Extension::GapDrift {
                 c1_rate: 1e-4,
                 c2_rate: -2e-4,
-            },
-        };
+            })
+            .with(Extension::Saturation { lo: -1.0, hi: 2.0 });
         let th = m.pack(1000.0);
-        assert_eq!(th.len(), 8);
+        assert_eq!(th.len(), 10);
+        assert_eq!(m.n_estimated(), 10);
         let back = m.unpack(&th, 1000.0);
         assert_eq!(back.base, m.base);
-        match back.ext {
-            Extension::GapDrift { c1_rate, c2_rate } => {
-                assert!((c1_rate - 1e-4).abs() < 1e-18 && (c2_rate + 2e-4).abs() < 1e-18)
+        match back.exts[..] {
+            [
+                Extension::GapDrift { c1_rate, c2_rate },
+                Extension::Saturation { lo, hi },
+            ] => {
+                assert!((c1_rate - 1e-4).abs() < 1e-18 && (c2_rate + 2e-4).abs() < 1e-18);
+                assert_eq!((lo, hi), (-1.0, 2.0));
             }
-            _ => panic!(),
+            _ => panic!("{back:?}"),
         }
     }
 
@@ -665,10 +779,11 @@ mod tests {
         let mut b = paper_base();
         b.a = vec![-2.5, 0.0];
         assert!(Model::plain(b).simulate(&input(500), 500, 1e6).is_none());
-        let m = Model {
-            base: paper_base(),
-            ext: Extension::ColouredNoise { phi: vec![0.5] },
-        };
+        let m = Model::plain(paper_base()).with(Extension::ColouredNoise { phi: vec![0.5] });
+        assert!(
+            !m.can_add(EffectId::GapDrift),
+            "nothing after a noise model"
+        );
         let sim = vec![1.0, 2.0, 3.0];
         let y = vec![1.5, 2.0, 2.0];
         assert_eq!(m.predict_from(&sim, &y), vec![1.0, 2.25, 3.0]);

@@ -80,7 +80,7 @@ impl EffectParams {
     /// period, when known) adds per-second forms of per-sample parameters.
     pub fn of(id: EffectId, m: &Model, current: &Model, n: usize, ts: Option<f64>) -> Self {
         let b = &m.base;
-        match (id, &m.ext) {
+        match (id, m.extension(id).unwrap_or(&Extension::None)) {
             (EffectId::ExtraDelay, _) => EffectParams::ExtraDelay {
                 delay: b.delay,
                 declared_delay: current.base.delay,
@@ -214,14 +214,40 @@ pub struct Effect<'a> {
     pub model: Option<&'a BaseModel>,
 }
 
-/// One step of the answer: an effect added, the test that pointed to it, the held-out error after it.
+/// One step of the loop: an effect added on top of the previous ones, the test that pointed to it, the
+/// held-out error after it.
 #[derive(Debug, Serialize)]
-pub struct Step {
+pub struct Step<'a> {
     pub id: EffectId,
     pub parameters: EffectParams,
     pub pointed_by: Option<&'static str>,
     /// Held-out free-run RMSE after this step.
     pub after_rmse: f64,
+    /// Held-out free-run RMSE of the model this step extended.
+    pub before_rmse: f64,
+    pub fit_rmse: f64,
+    pub bic: f64,
+    pub delta_bic: f64,
+    pub heldout_z: f64,
+    pub error_kind: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub one_step: Option<OneStep>,
+    pub reason: &'a str,
+}
+
+/// A round of the loop after the first: the effects the model it extended had, and what its residual
+/// showed.
+#[derive(Debug, Serialize)]
+pub struct RoundOut<'a> {
+    pub extends: Vec<EffectId>,
+    /// Held-out free-run RMSE of the model it extended.
+    pub before_rmse: f64,
+    /// The residual tests that rejected.
+    pub rejected: Vec<&'static str>,
+    pub set_aside: &'a [String],
+    pub candidates: Vec<CandidateOut<'a>>,
+    pub not_tried: &'a [EffectId],
+    pub chosen: Option<EffectId>,
 }
 
 /// The final model.
@@ -271,7 +297,10 @@ pub struct CandidateOut<'a> {
 pub struct DiagnosisOut<'a> {
     pub before: Before<'a>,
     pub effect: Effect<'a>,
-    pub effects: Vec<Step>,
+    pub effects: Vec<Step<'a>>,
+    /// The loop's rounds after the first, and why it stopped.
+    pub rounds: Vec<RoundOut<'a>>,
+    pub stopped: &'a str,
     pub after: After,
     pub linear: Linear<'a>,
     pub backlash: &'a BacklashSupport,
@@ -323,15 +352,55 @@ impl<'a> DiagnosisOut<'a> {
                 model: None,
             },
         };
+        let mut currents: Vec<&Model> = vec![&d.base];
+        currents.extend(d.later.iter().map(|r| &r.current));
+        let mut befores = vec![d.base_heldout_rmse];
+        befores.extend(d.later.iter().map(|r| r.current_heldout_rmse));
         let effects = d
-            .effect()
-            .map(|c| Step {
+            .steps()
+            .into_iter()
+            .zip(currents.iter().zip(&befores))
+            .map(|(c, (cur, &before_rmse))| Step {
                 id: c.id,
-                parameters: params(c),
+                parameters: EffectParams::of(c.id, &c.model, cur, d.n, ts),
                 pointed_by: c.pointed_by.first().copied(),
                 after_rmse: c.heldout_rmse,
+                before_rmse,
+                fit_rmse: c.fit_rmse,
+                bic: c.bic,
+                delta_bic: c.delta_bic,
+                heldout_z: c.heldout_z,
+                error_kind: c.error_kind,
+                one_step: c.one_step,
+                reason: &c.reason,
             })
-            .into_iter()
+            .collect();
+        let kept: Vec<EffectId> = d.steps().iter().map(|c| c.id).collect();
+        let rounds = d
+            .later
+            .iter()
+            .enumerate()
+            .map(|(i, r)| RoundOut {
+                // Round i + 2 extends the model with the first i + 1 effects.
+                extends: kept[..=i].to_vec(),
+                before_rmse: r.current_heldout_rmse,
+                rejected: r
+                    .found
+                    .tests
+                    .iter()
+                    .filter(|t| t.verdict.rejects)
+                    .map(|t| t.verdict.name)
+                    .collect(),
+                set_aside: &r.found.set_aside,
+                candidates: r
+                    .found
+                    .candidates
+                    .iter()
+                    .map(|c| candidate_out(c, &r.current, d.n, ts))
+                    .collect(),
+                not_tried: &r.found.not_tried,
+                chosen: r.found.chosen.map(|i| r.found.candidates[i].id),
+            })
             .collect();
         let lin = &d.linear.model;
         Self {
@@ -344,10 +413,12 @@ impl<'a> DiagnosisOut<'a> {
             },
             effect,
             effects,
+            rounds,
+            stopped: &d.stopped,
             after: After {
                 rmse: d.after_rmse(),
                 error_kind: "simulation",
-                one_step: d.effect().and_then(|c| c.one_step),
+                one_step: d.steps().last().and_then(|c| c.one_step),
             },
             linear: Linear {
                 rmse: d.linear.heldout_rmse,
@@ -370,21 +441,7 @@ impl<'a> DiagnosisOut<'a> {
             candidates: d
                 .candidates
                 .iter()
-                .map(|c| CandidateOut {
-                    id: c.id,
-                    pointed_by: &c.pointed_by,
-                    parameters: params(c),
-                    k: c.k,
-                    fit_rmse: c.fit_rmse,
-                    heldout_rmse: c.heldout_rmse,
-                    heldout_z: c.heldout_z,
-                    error_kind: c.error_kind,
-                    one_step: c.one_step,
-                    bic: c.bic,
-                    delta_bic: c.delta_bic,
-                    supported: c.supported,
-                    reason: &c.reason,
-                })
+                .map(|c| candidate_out(c, &d.base, d.n, ts))
                 .collect(),
             not_tried: &d.not_tried,
             decision: DECISION_RULE,
@@ -392,6 +449,30 @@ impl<'a> DiagnosisOut<'a> {
             fit_samples: d.n_fit,
             heldout_samples: d.n - d.n_fit,
         }
+    }
+}
+
+/// A candidate fitted on top of `current`, for the JSON.
+fn candidate_out<'a>(
+    c: &'a Candidate,
+    current: &Model,
+    n: usize,
+    ts: Option<f64>,
+) -> CandidateOut<'a> {
+    CandidateOut {
+        id: c.id,
+        pointed_by: &c.pointed_by,
+        parameters: EffectParams::of(c.id, &c.model, current, n, ts),
+        k: c.k,
+        fit_rmse: c.fit_rmse,
+        heldout_rmse: c.heldout_rmse,
+        heldout_z: c.heldout_z,
+        error_kind: c.error_kind,
+        one_step: c.one_step,
+        bic: c.bic,
+        delta_bic: c.delta_bic,
+        supported: c.supported,
+        reason: &c.reason,
     }
 }
 

@@ -122,8 +122,8 @@ impl<'a> Problem<'a> {
             return false;
         }
         let y = &self.y[..n];
-        match (obj, &m.ext) {
-            (Objective::Prediction, Extension::ColouredNoise { phi }) => {
+        match (obj, m.noise()) {
+            (Objective::Prediction, Some(phi)) => {
                 if phi.iter().any(|p| !p.is_finite()) {
                     return false;
                 }
@@ -150,9 +150,17 @@ impl<'a> Problem<'a> {
     /// Typical magnitudes of the packed parameters of `m`.
     fn typical(&self, m: &Model) -> Vec<f64> {
         let mut t = m.base.typical(self.y_scale);
+        for e in &m.exts {
+            t.extend(self.typical_ext(e));
+        }
+        t
+    }
+
+    /// Typical magnitudes of an extension's packed parameters.
+    fn typical_ext(&self, e: &Extension) -> Vec<f64> {
         let ys = self.y_scale;
         let xs = self.x_scale.max(1e-12);
-        t.extend(match &m.ext {
+        match e {
             Extension::None => vec![],
             Extension::Quantization { step, .. } => vec![0.1 * step],
             Extension::GapDrift { .. } => vec![0.1 * ys; 2],
@@ -167,8 +175,7 @@ impl<'a> Problem<'a> {
             Extension::Saturation { .. } | Extension::Friction { .. } => vec![ys; 2],
             Extension::Periodic { .. } => vec![1.0 / self.n_fit as f64, 0.1 * ys, 0.1 * ys],
             Extension::ColouredNoise { phi } => vec![0.5; phi.len()],
-        });
-        t
+        }
     }
 
     /// Fit `template`'s structure from `starts`. Returns the model and its fit-part cost.

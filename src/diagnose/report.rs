@@ -72,13 +72,7 @@ fn pts(x: &[f64], y: &[f64]) -> Vec<(f64, f64)> {
 }
 
 fn fmt(v: f64) -> String {
-    if v == 0.0 {
-        "0".into()
-    } else if v.abs() >= 1e4 || v.abs() < 1e-3 {
-        format!("{v:.3e}")
-    } else {
-        format!("{v:.4}")
-    }
+    crate::report::number(v)
 }
 
 /// Write `report.md` and the figures into `dir` (created if needed). Returns the Markdown file's path.
@@ -96,10 +90,20 @@ pub fn write_report(
     let t = &input.t[..n];
     let y = &input.y[..n];
     let before = &d.base_sim.y;
-    let after: &[f64] = d.effect().map_or(before, |c| &c.output);
-    let after_label = d.effect().map_or("declared model (null)".to_string(), |c| {
-        format!("extended: {}", c.id)
-    });
+    let steps = d.steps();
+    let after: &[f64] = steps.last().map_or(before, |c| &c.output);
+    let after_label = if steps.is_empty() {
+        "declared model (null)".to_string()
+    } else {
+        format!(
+            "extended: {}",
+            steps
+                .iter()
+                .map(|c| c.id.as_str())
+                .collect::<Vec<_>>()
+                .join(" + ")
+        )
+    };
     let e0: Vec<f64> = y.iter().zip(before).map(|(a, b)| a - b).collect();
     let e1: Vec<f64> = y.iter().zip(after).map(|(a, b)| a - b).collect();
     let mut figures: Vec<(String, String)> = Vec::new();
@@ -218,6 +222,9 @@ pub fn write_report(
     // Evidence.
     let caption = evidence(dir, d, input, &e0, &e1, &after_label)?;
     figures.push(("evidence.png".into(), caption));
+    if !steps.is_empty() {
+        figures.push(("steps.png".into(), steps_plot(dir, d, input)?));
+    }
 
     // Cross-record validations.
     for v in input.validations {
@@ -257,6 +264,43 @@ pub fn write_report(
     Ok(path)
 }
 
+/// The held-out error after each step of the loop (step 0: the declared model); returns its caption.
+fn steps_plot(dir: &Path, d: &Diagnosis, input: &ReportInput) -> Result<String, ReportError> {
+    let errors: Vec<(f64, f64)> = std::iter::once(d.base_heldout_rmse)
+        .chain(d.steps().iter().map(|c| c.heldout_rmse))
+        .enumerate()
+        .map(|(i, v)| (i as f64, v))
+        .collect();
+    let linear = vec![
+        (0.0, d.linear.heldout_rmse),
+        ((errors.len() - 1) as f64, d.linear.heldout_rmse),
+    ];
+    line_plot(
+        &dir.join("steps.png"),
+        "Held-out error at each step of the loop",
+        "effects added",
+        &format!("held-out RMSE of {}", input.columns[2]),
+        &[
+            Series::line("declared model, then each effect added", errors.clone()).color(0),
+            Series::points("", errors).color(0),
+            Series::dashed("best linear model", linear).color(7),
+        ],
+        false,
+        false,
+    )?;
+    let names: Vec<String> = d
+        .steps()
+        .iter()
+        .enumerate()
+        .map(|(i, c)| format!("{} `{}`", i + 1, c.id))
+        .collect();
+    Ok(format!(
+        "Held-out free-run RMSE of the declared model (0) and after each effect added ({}); the best linear \
+         model's for reference (dashed).",
+        names.join(", ")
+    ))
+}
+
 /// The effect-specific figure; returns its caption.
 fn evidence(
     dir: &Path,
@@ -273,7 +317,7 @@ fn evidence(
     let sim = &d.base_sim;
     let id = d.effect_id();
     let test = d.pointing_test().unwrap_or("none");
-    match (id, d.effect().map(|c| &c.model.ext)) {
+    match (id, d.effect().and_then(|c| c.model.extension(c.id))) {
         (Some(EffectId::GapDrift), Some(Extension::GapDrift { c1_rate, c2_rate })) => {
             // Running means of the declared model's residual on each border, and the drift the fit found.
             let win = (n / 25).max(5);
@@ -584,6 +628,83 @@ fn params_text(params: &serde_json::Value) -> String {
         .unwrap_or_default()
 }
 
+/// The loop's steps as a table (effect, the test that pointed to it, fit and held-out errors, BIC) and what
+/// each later round tried.
+fn loop_section(s: &mut String, d: &Diagnosis) {
+    let steps = d.steps();
+    if steps.is_empty() {
+        return;
+    }
+    let _ = writeln!(s, "## The loop\n");
+    let _ = writeln!(
+        s,
+        "After an effect is kept, the extended model is the current one: its residual is tested again and the \
+         candidates it points to are fitted on top of it (all parameters jointly, so the last step is the \
+         joint refit of every effect found). Stopped: {}.\n",
+        d.stopped
+    );
+    let _ = writeln!(
+        s,
+        "| step | effect | pointed to by | fit RMSE | held-out RMSE | BIC | dBIC |"
+    );
+    let _ = writeln!(s, "| --- | --- | --- | --- | --- | --- | --- |");
+    let _ = writeln!(
+        s,
+        "| 0 | declared model | - | {} | {} | {:.1} | - |",
+        fmt(d.base_fit_rmse),
+        fmt(d.base_heldout_rmse),
+        d.base_bic
+    );
+    for (i, c) in steps.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "| {} | `{}` | {} | {} | {}{} | {:.1} | {:+.1} |",
+            i + 1,
+            c.id,
+            c.pointed_by.first().copied().unwrap_or("-"),
+            fmt(c.fit_rmse),
+            fmt(c.heldout_rmse),
+            c.one_step.map_or(String::new(), |o| format!(
+                " (one-step {} -> {})",
+                fmt(o.before),
+                fmt(o.after)
+            )),
+            c.bic,
+            c.delta_bic
+        );
+    }
+    for (i, r) in d.later.iter().enumerate() {
+        let tried: Vec<String> = r
+            .found
+            .candidates
+            .iter()
+            .map(|c| {
+                format!(
+                    "`{}` {} ({})",
+                    c.id,
+                    if c.supported {
+                        "supported"
+                    } else {
+                        "not supported"
+                    },
+                    c.reason
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "\nRound {}: {}.",
+            i + 2,
+            if tried.is_empty() {
+                "no residual test pointed to an effect that can still be added".to_string()
+            } else {
+                tried.join("; ")
+            }
+        );
+    }
+    let _ = writeln!(s);
+}
+
 fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) -> String {
     let mut s = String::new();
     let effect = d.effect();
@@ -650,6 +771,18 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
         fmt(d.base_fit_rmse)
     );
     let _ = writeln!(s, "## Result\n");
+    let steps = d.steps();
+    if steps.len() > 1 {
+        let names: Vec<String> = steps.iter().map(|c| format!("`{}`", c.id)).collect();
+        let _ = writeln!(
+            s,
+            "**Effects found, in order: {}.** Held-out RMSE {} with the declared model, **{}** with all of them \
+             (steps in the section *The loop*). The first:\n",
+            names.join(", then "),
+            fmt(d.base_heldout_rmse),
+            fmt(d.after_rmse())
+        );
+    }
     match effect {
         Some(c) => {
             let _ = writeln!(
@@ -688,6 +821,7 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
             );
         }
     }
+    loop_section(&mut s, d);
     let _ = writeln!(s, "Decision rule: {}.\n", DECISION_RULE);
     for why in &d.set_aside {
         let _ = writeln!(s, "Set aside: {why}.\n");

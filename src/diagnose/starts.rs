@@ -69,10 +69,7 @@ pub fn plan(id: EffectId, cx: &StartContext) -> Option<Plan> {
 }
 
 fn with_ext(cx: &StartContext, ext: Extension) -> Model {
-    Model {
-        base: cx.current.base.clone(),
-        ext,
-    }
+    cx.current.with(ext)
 }
 
 /// The extension's own parameters start at zero (no drift, straight borders): the current model.
@@ -127,15 +124,11 @@ fn linear_order(cx: &StartContext) -> Option<Plan> {
 }
 
 fn restructured(cx: &StartContext, na: usize, nb: usize, delay: usize) -> Alternative {
-    let template = Model {
-        base: cx.current.base.with_orders(na, nb, delay),
-        ext: cx.current.ext.clone(),
-    };
+    let template = cx
+        .current
+        .rebased(cx.current.base.with_orders(na, nb, delay));
     let mut starts = vec![template.clone()];
-    starts.extend((cx.mrgia)(na, nb, delay).map(|base| Model {
-        base,
-        ext: cx.current.ext.clone(),
-    }));
+    starts.extend((cx.mrgia)(na, nb, delay).map(|base| cx.current.rebased(base)));
     Alternative { template, starts }
 }
 
@@ -270,17 +263,18 @@ fn friction(cx: &StartContext) -> Option<Plan> {
     // Series form: the offset of the gaps sets the element's first output (w(0) jumps onto a border when a
     // gap is negative): the current one scaled, none, and +-1/8 of the output's range.
     let spread = (q99 - q01) / 8.0;
-    let model = |b: &BaseModel, c1: f64, c2: f64, frac: f64, form: FrictionForm| Model {
-        base: BaseModel {
-            c1,
-            c2,
-            ..b.clone()
-        },
-        ext: Extension::Friction {
-            f_plus: frac * q99,
-            f_minus: -frac * q01,
-            form,
-        },
+    let model = |b: &BaseModel, c1: f64, c2: f64, frac: f64, form: FrictionForm| {
+        cx.current
+            .rebased(BaseModel {
+                c1,
+                c2,
+                ..b.clone()
+            })
+            .with(Extension::Friction {
+                f_plus: frac * q99,
+                f_minus: -frac * q01,
+                form,
+            })
     };
     let (mut series, mut contact) = (Vec::new(), Vec::new());
     for scale in gain_scales(steepness_ratio(cx)) {
@@ -334,18 +328,23 @@ fn friction(cx: &StartContext) -> Option<Plan> {
             },
         )
     };
+    let alternatives = [
+        (FrictionForm::Series, series),
+        (FrictionForm::Contact, contact),
+    ]
+    .into_iter()
+    .map(|(form, starts)| Alternative {
+        template: template(form),
+        starts,
+    })
+    .filter(|alt| {
+        cx.current
+            .admits(alt.template.exts.last().expect("friction added"))
+    })
+    .collect();
     Some(Plan {
         objective: Objective::Simulation,
-        alternatives: vec![
-            Alternative {
-                template: template(FrictionForm::Series),
-                starts: series,
-            },
-            Alternative {
-                template: template(FrictionForm::Contact),
-                starts: contact,
-            },
-        ],
+        alternatives,
     })
 }
 

@@ -6,6 +6,7 @@ use backlash::diagnose::output::DiagnosisOut;
 use backlash::diagnose::record::decimate;
 use backlash::diagnose::report::{ReportInput, Validation, write_report};
 use backlash::io::Table;
+use backlash::report::number;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -30,6 +31,9 @@ pub struct DiagnoseArgs {
     /// not tried.
     #[arg(long, default_value_t = 300.0)]
     pub time_budget: f64,
+    /// The most effects the loop adds, one per round (1 to 9; 1: name the first effect only).
+    #[arg(long, default_value_t = 3)]
+    pub max_effects: usize,
     /// Print one JSON object on stdout and nothing else there.
     #[arg(long)]
     pub json: bool,
@@ -127,6 +131,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
     cfg.max_delay = args.max_delay;
     cfg.fit_fraction = args.fit_fraction;
     cfg.seed = args.seed;
+    cfg.max_effects = args.max_effects;
     if !(args.time_budget.is_finite() && args.time_budget > 0.0 && args.time_budget <= 1e6) {
         bail!(
             "--time-budget {} must be a number of seconds between 0 and 1000000 (not 0)",
@@ -215,21 +220,30 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
         d.n_fit,
         d.n - d.n_fit
     );
-    match d.effect() {
-        Some(c) => println!(
-            "  effect: {} (pointed to by: {}); held-out RMSE {:.6} -> {:.6} ({} error)",
-            c.id,
-            d.pointing_test().unwrap_or("-"),
-            d.base_heldout_rmse,
-            c.heldout_rmse,
-            c.error_kind
-        ),
-        None => println!(
-            "  effect: null (no extension is supported); held-out RMSE {:.6}",
-            d.base_heldout_rmse
-        ),
+    let steps = d.steps();
+    if steps.is_empty() {
+        println!(
+            "  effect: null (no extension is supported); held-out RMSE {}",
+            number(d.base_heldout_rmse)
+        );
     }
-    println!("  residual tests (fit part of the declared model's residual):");
+    let mut before = d.base_heldout_rmse;
+    for (i, c) in steps.iter().enumerate() {
+        println!(
+            "  step {}: {} (pointed to by: {}); held-out RMSE {} -> {} ({} error)",
+            i + 1,
+            c.id,
+            c.pointed_by.first().copied().unwrap_or("-"),
+            number(before),
+            number(c.heldout_rmse),
+            c.error_kind
+        );
+        before = c.heldout_rmse;
+    }
+    if !steps.is_empty() {
+        println!("  loop: {}", d.stopped);
+    }
+    println!("  residual tests (fit part of the declared model's residual, first round):");
     for t in &d.tests {
         println!(
             "    [{}] {}: {:.3} (threshold {:.3})",
@@ -244,12 +258,12 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
         );
     }
     if !d.candidates.is_empty() {
-        println!("  candidates:");
+        println!("  candidates of the first round:");
         for c in &d.candidates {
             println!(
-                "    {:<22} held-out {:.6} (z {:.2}), dBIC {:+.1}: {}",
+                "    {:<22} held-out {} (z {:.2}), dBIC {:+.1}: {}",
                 c.id.as_str(),
-                c.heldout_rmse,
+                number(c.heldout_rmse),
                 c.heldout_z,
                 c.delta_bic,
                 c.reason
@@ -258,8 +272,11 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
     }
     for v in &validations {
         println!(
-            "  validation on {}: RMSE declared {:.6}, chosen {:.6} (output std {:.6})",
-            v.name, v.result.rmse_before, v.result.rmse_after, v.result.y_std
+            "  validation on {}: RMSE declared {}, chosen {} (output std {})",
+            v.name,
+            number(v.result.rmse_before),
+            number(v.result.rmse_after),
+            number(v.result.y_std)
         );
     }
     if let Some(p) = report_path {
