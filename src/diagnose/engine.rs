@@ -1,7 +1,7 @@
-//! # Diagnosis: which effect does the model lack?
+//! # Diagnosis: which effects does the model lack?
 //!
-//! `backlash diagnose FILE [--na N --nb N --delay D]` answers with one id of the catalogue (or `null`) and
-//! the evidence for it. The procedure ([`diagnose`]):
+//! `backlash diagnose FILE [--na N --nb N --delay D]` answers with the ids of the catalogue the record shows,
+//! in the order they were found (or `null`), and the evidence for each. The procedure ([`diagnose`]):
 //!
 //! 1. **Split.** The first 70% of the record fit the models; the last 30% are held out and only judge them.
 //!    Every model is simulated over the whole record from rest, so the held-out part starts from the state
@@ -35,7 +35,18 @@
 //!    plain model is refitted from there and the diagnosis repeated (at most twice), so that "before" is an
 //!    honest optimum.
 //!
-//! "before" is the current model's held-out RMSE, "after" the chosen extension's simulation RMSE (equal to
+//! 7. **Loop**: the winner becomes the current model and steps 4 to 6 repeat on its residual:
+//!    the candidates are fitted on top of it (all parameters, the earlier effects' too, jointly: the last
+//!    round's fit is the joint refit of every effect found), judged against it by the same rule, and the
+//!    lowest BIC among the supported ones is kept. Each effect is added at most once; a noise model ends
+//!    the loop (it describes what the deterministic part leaves); friction with the play inside its spring
+//!    and curved borders are never combined (that element has straight borders). The loop stops when no
+//!    candidate is supported, after `max_effects` effects (default 3) or when the time budget is spent.
+//!    On a clean record the first round finds nothing, so the loop adds no false positive there; on a
+//!    single-effect record the second round judges a residual that has no structure left, as the first
+//!    round does on a clean record.
+//!
+//! "before" is the declared model's held-out RMSE, "after" the final model's simulation RMSE (equal to
 //! "before" for `null`). **coloured-noise is judged by prediction:** its evidence is the one-step-ahead
 //! prediction error `y(k) - [s(k) + sum_i phi_i (y(k-i) - s(k-i))]` (s the simulated output) against the
 //! plain model's, whose predictor is its simulation; those two numbers are reported as `one_step` beside

@@ -201,6 +201,16 @@ impl Effects {
             check_positive("k_e", f.k_e)?;
             check_non_negative("f_plus", f.f_plus)?;
             check_non_negative("f_minus", f.f_minus)?;
+            // The contact element has the play inside its spring with straight borders.
+            if f.form == FrictionForm::Contact
+                && self.curved_borders.is_some_and(|c| !c.is_straight())
+            {
+                return Err(ParamError::new(
+                    "friction",
+                    2.0,
+                    "cannot be the contact form with curved borders (its spring has straight borders): use the series form or straight borders",
+                ));
+            }
         }
         if let Some(p) = &self.periodic {
             check_finite("amplitude", p.amplitude)?;
@@ -475,6 +485,37 @@ mod tests {
     use crate::plant::Plant;
     use rand_chacha::ChaCha8Rng;
     use rand_core::SeedableRng;
+
+    #[test]
+    fn contact_friction_on_curved_borders_is_refused_series_is_not() {
+        let friction = |form| Friction {
+            k_e: 1.0,
+            f_plus: 0.5,
+            f_minus: 0.5,
+            form,
+        };
+        let curved = CurvedBorders {
+            upper: [0.1, 0.0],
+            lower: [0.0, 0.0],
+        };
+        let e = Effects {
+            friction: Some(friction(FrictionForm::Contact)),
+            curved_borders: Some(curved),
+            ..Effects::default()
+        };
+        let err = e.validate().unwrap_err();
+        assert!(err.reason.contains("series form"), "{err}");
+        let series = Effects {
+            friction: Some(friction(FrictionForm::Series)),
+            ..e
+        };
+        assert!(series.validate().is_ok());
+        let straight = Effects {
+            curved_borders: Some(CurvedBorders::default()),
+            ..e
+        };
+        assert!(straight.validate().is_ok());
+    }
     use rand_distr::{Distribution, StandardNormal};
 
     fn input(n: usize) -> Vec<f64> {

@@ -189,6 +189,7 @@ def test_bench_values_outside_the_declared_range_are_refused_when_set(plant_fmu,
     ({"saturation": 1}, {"sat_lo": 2.0, "sat_hi": 1.0}, "sat_lo"),
     ({"border": 1}, {"fa1": 1.0, "fd1": 1.0, "c1_rate": 0.1}, "c1_rate"),
     ({"border": 1, "friction": 2}, {"fa1": 1.0, "fd1": 1.0}, "contact friction"),
+    ({"friction": 2}, {"curve_up2": 0.1}, "curved borders"),
 ])
 def test_inconsistent_bench_parameters_are_refused_at_exit_initialization(plant_fmu, ints, reals, reason):
     from fmpy import extract
@@ -240,6 +241,8 @@ def test_diagnose_names_the_effect_the_fmu_was_given(plant_fmu, cli, tmp_path, e
                          capture_output=True, text=True, check=True)
     j = json.loads(out.stdout)
     assert j["effect"]["id"] == effect, j["effect"]
+    # The loop goes on after the first effect: on a single-effect record it adds nothing else.
+    assert [e["id"] for e in j["effects"]] == [effect], j["effects"]
     one_step = j["after"].get("one_step")
     if one_step is not None:
         # A noise model leaves the simulation (and its free-run error) as it was; it is judged, and its gain
@@ -248,3 +251,43 @@ def test_diagnose_names_the_effect_the_fmu_was_given(plant_fmu, cli, tmp_path, e
         assert one_step["after"] < one_step["before"]
     else:
         assert j["after"]["rmse"] < j["before"]["rmse"]
+
+
+# Several effects at once, made by the FMU: the loop names each one present and no other, and every step
+# lowers the held-out error (a noise model: its one-step prediction error).
+COMBINED = [
+    ("gap-drift", "quantization"),
+    ("friction", "coloured-noise"),
+    ("extra-delay", "saturation"),
+    ("curved-borders", "periodic-disturbance"),
+    ("gap-drift", "saturation", "periodic-disturbance"),
+]
+
+
+@pytest.mark.parametrize("effects", COMBINED, ids=["+".join(c) for c in COMBINED])
+def test_diagnose_names_every_effect_of_a_combined_record(plant_fmu, cli, tmp_path, effects):
+    n = 3000
+    u = _input(n, 41)
+    start = {"noise_std": 0.04, "noise_seed": 11}
+    for e in effects:
+        start.update(DIAGNOSED[e])
+    got = _run(plant_fmu, u, start, outputs=("y",))
+    path = tmp_path / "combined.csv"
+    t = np.arange(n) * TS
+    np.savetxt(path, np.column_stack([t, u, got["y"]]), delimiter=",", header="time,u,y", comments="",
+               fmt="%.17g")
+    out = subprocess.run([cli, "diagnose", str(path), "--na", "2", "--nb", "0", "--delay", "1", "--json"],
+                         capture_output=True, text=True, check=True)
+    j = json.loads(out.stdout)
+    named = [e["id"] for e in j["effects"]]
+    assert sorted(named) == sorted(effects), (named, j["stopped"])
+    assert j["effect"]["id"] == named[0]
+    before = j["before"]["rmse"]
+    for step in j["effects"]:
+        assert step["before_rmse"] == before
+        if step.get("one_step"):
+            assert step["one_step"]["after"] < step["one_step"]["before"]
+        else:
+            assert step["after_rmse"] < before
+        before = step["after_rmse"]
+    assert j["after"]["rmse"] == j["effects"][-1]["after_rmse"]
