@@ -559,6 +559,82 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
+    /// A record with two effects: the loop names both (in order of their BIC gain), each step lowers the
+    /// held-out error, the JSON lists the steps, the rounds and why the loop stopped, and the report shows
+    /// the loop; with `max_effects = 1` only the first is named.
+    #[test]
+    fn the_loop_names_both_effects_of_a_two_effect_record() {
+        let s = scenario_with(&[EffectId::GapDrift, EffectId::Quantization], 30_100, 3000);
+        let d = run(&s);
+        let named: Vec<EffectId> = d.steps().iter().map(|c| c.id).collect();
+        let mut sorted = named.clone();
+        sorted.sort();
+        assert_eq!(sorted, [EffectId::GapDrift, EffectId::Quantization], "{}", d.stopped);
+        let j = d.to_json(None);
+        let steps = j["effects"].as_array().unwrap();
+        assert_eq!(steps.len(), 2);
+        assert_eq!(j["effect"]["id"], steps[0]["id"]);
+        assert_eq!(steps[0]["before_rmse"], j["before"]["rmse"]);
+        assert_eq!(steps[1]["before_rmse"], steps[0]["after_rmse"]);
+        assert_eq!(j["after"]["rmse"], steps[1]["after_rmse"]);
+        let (e0, e1, e2) = (
+            d.base_heldout_rmse,
+            steps[0]["after_rmse"].as_f64().unwrap(),
+            steps[1]["after_rmse"].as_f64().unwrap(),
+        );
+        assert!(e2 < e1 && e1 < e0, "{e0} -> {e1} -> {e2}");
+        // Round 2 extended the first effect and chose the second; round 3 found nothing more.
+        let rounds = j["rounds"].as_array().unwrap();
+        assert_eq!(rounds.len(), 2, "{rounds:?}");
+        assert_eq!(rounds[0]["extends"], serde_json::json!([named[0]]));
+        assert_eq!(rounds[0]["chosen"], serde_json::json!(named[1]));
+        assert!(rounds[1]["chosen"].is_null());
+        assert!(j["stopped"].as_str().unwrap().contains("no further effect"));
+        // The final model carries both extensions, fitted jointly.
+        let fin = d.final_model();
+        assert!(fin.extension(EffectId::GapDrift).is_some());
+        assert!(fin.extension(EffectId::Quantization).is_some());
+
+        let dir = std::env::temp_dir().join(format!("backlash-loop-{}", std::process::id()));
+        let t: Vec<f64> = (0..s.u.len()).map(|k| k as f64).collect();
+        let input = crate::diagnose::report::ReportInput {
+            columns: ["time", "u", "y"],
+            file: "bench",
+            t: &t,
+            u: &s.u,
+            y: &s.y,
+            decimate: 1,
+            command: None,
+            validations: &[],
+        };
+        let md = crate::diagnose::report::write_report(&dir, &d, &input).unwrap();
+        let text = std::fs::read_to_string(&md).unwrap();
+        assert!(text.contains("## The loop"), "{text}");
+        assert!(text.contains(&format!("| 2 | `{}` |", named[1])), "{text}");
+        assert!(dir.join("steps.png").metadata().unwrap().len() > 1000);
+        std::fs::remove_dir_all(&dir).unwrap();
+
+        let (na, nb, delay) = s.declared;
+        let one = diagnose(
+            &s.u,
+            &s.y,
+            &DiagnoseConfig {
+                max_effects: 1,
+                ..DiagnoseConfig::new(na, nb, delay)
+            },
+        )
+        .unwrap();
+        assert_eq!(one.steps().len(), 1);
+        assert_eq!(one.effect_id(), Some(named[0]));
+        assert!(one.stopped.contains("--max-effects"), "{}", one.stopped);
+        let bad = DiagnoseConfig {
+            max_effects: 0,
+            ..DiagnoseConfig::new(na, nb, delay)
+        };
+        let err = diagnose(&s.u, &s.y, &bad).unwrap_err().to_string();
+        assert!(err.contains("between 1 and 9"), "{err}");
+    }
+
     /// Development sweep (not part of the suite): `DIAG_SEEDS=a..b DIAG_EFFECTS=clean,friction DIAG_N=3000
     /// cargo test --release --lib dev_sweep -- --ignored --nocapture`.
     #[test]
