@@ -569,7 +569,12 @@ mod tests {
         let named: Vec<EffectId> = d.steps().iter().map(|c| c.id).collect();
         let mut sorted = named.clone();
         sorted.sort();
-        assert_eq!(sorted, [EffectId::GapDrift, EffectId::Quantization], "{}", d.stopped);
+        assert_eq!(
+            sorted,
+            [EffectId::GapDrift, EffectId::Quantization],
+            "{}",
+            d.stopped
+        );
         let j = d.to_json(None);
         let steps = j["effects"].as_array().unwrap();
         assert_eq!(steps.len(), 2);

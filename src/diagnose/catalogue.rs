@@ -15,7 +15,7 @@
 use serde::{Deserialize, Serialize};
 
 /// Names of the residual tests (the `name` of their [`crate::diagnose::residual::Verdict`]).
-pub mod tests {
+pub mod test_names {
     pub const LJUNG_BOX: &str = "ljung-box";
     pub const CROSS_CORRELATION: &str = "residual-input cross-correlation";
     pub const BILLINGS: &str = "billings higher-order correlations";
@@ -106,7 +106,7 @@ impl EffectId {
 
     /// The residual tests whose rejection makes this effect a candidate, most specific first.
     pub fn pointing_tests(self) -> &'static [&'static str] {
-        use tests::*;
+        use test_names::*;
         match self {
             EffectId::GapDrift => &[DRIFT, BY_MODE],
             EffectId::CurvedBorders => &[AGAINST_X, BILLINGS, EXTREMES],

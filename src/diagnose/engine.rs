@@ -75,10 +75,10 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::catalogue::{EffectId, tests as test_names};
+use super::catalogue::{EffectId, test_names};
 use super::decision::{self, Evidence};
 use super::fit::{LmOptions, bic};
-use super::model::{BaseModel, Model, Objective, Simulation};
+use super::model::{BaseModel, EffectModel, Objective, Simulation};
 pub use super::problem::EXPLORE_SAMPLES;
 use super::problem::{Problem, fit_linear, fit_plain, sim_limit};
 use super::residual::{self, Verdict};
@@ -188,7 +188,7 @@ pub struct Candidate {
     pub id: EffectId,
     /// The rejecting tests that made it a candidate (pointing order).
     pub pointed_by: Vec<&'static str>,
-    pub model: Model,
+    pub model: EffectModel,
     /// Parameters estimated (base + extension) for the information criterion.
     pub k: usize,
     pub fit_rmse: f64,
@@ -243,7 +243,7 @@ pub struct BacklashSupport {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Round {
     /// The model this round extends, with its held-out free-run RMSE and BIC.
-    pub current: Model,
+    pub current: EffectModel,
     pub current_heldout_rmse: f64,
     pub current_bic: f64,
     pub found: Found,
@@ -270,7 +270,7 @@ pub struct Diagnosis {
     pub structure: StructureChoice,
     pub linear: LinearFit,
     /// The plain backlash model fitted on the fit part.
-    pub base: Model,
+    pub base: EffectModel,
     pub base_k: usize,
     pub base_fit_rmse: f64,
     pub base_bic: f64,
@@ -319,7 +319,7 @@ impl Diagnosis {
     }
 
     /// The final model: the last effect kept on top of the others, or the plain model.
-    pub fn final_model(&self) -> &Model {
+    pub fn final_model(&self) -> &EffectModel {
         self.steps().last().map_or(&self.base, |c| &c.model)
     }
 
@@ -413,7 +413,7 @@ pub fn diagnose(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<Diagnosis,
             && let Some(c) = d.effect()
             && !c.model.exts.is_empty()
         {
-            let start = Model::plain(c.model.base.clone());
+            let start = EffectModel::plain(c.model.base.clone());
             if let Some((polished, cost)) =
                 problem.fit(&start, std::slice::from_ref(&start), Objective::Simulation)
                 && cost < base.1 * (1.0 - 1e-6)
@@ -547,7 +547,7 @@ fn check_record(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<(), Diagno
 /// The linear model's fit and held-out errors over the record.
 fn linear_fit(p: &Problem, linear: &(BaseModel, f64)) -> LinearFit {
     let n = p.u.len();
-    let output = Model::plain(linear.0.clone())
+    let output = EffectModel::plain(linear.0.clone())
         .simulate(p.u, n, p.limit)
         .map_or_else(|| vec![f64::NAN; n], |s| s.y);
     LinearFit {
@@ -610,7 +610,7 @@ fn backlash_support(
 fn diagnose_from(
     p: &mut Problem,
     cfg: &DiagnoseConfig,
-    base: Model,
+    base: EffectModel,
     linear: &(BaseModel, f64),
     structure: StructureChoice,
     rounds: usize,
@@ -667,7 +667,7 @@ fn diagnose_from(
 /// The model a round extends, its simulation and residual over the whole record, its fit-part cost and BIC
 /// (with the structure penalties of the effects it has), and the effects not to try again.
 struct Current<'a> {
-    model: &'a Model,
+    model: &'a EffectModel,
     sim: &'a Simulation,
     e: &'a [f64],
     cost: f64,
@@ -840,7 +840,7 @@ struct Context<'a, 'b> {
 
 impl Context<'_, '_> {
     /// Fit every structure of the candidate's plan; the lowest cost wins.
-    fn fit_candidate(&self, id: EffectId) -> Option<(Model, f64, Objective)> {
+    fn fit_candidate(&self, id: EffectId) -> Option<(EffectModel, f64, Objective)> {
         let plan = starts::plan(id, &self.starts)?;
         if plan.objective == Objective::Prediction {
             // A noise model is fitted on the current model's residual with the deterministic part kept (its
@@ -850,7 +850,7 @@ impl Context<'_, '_> {
             let cost = self.p.cost(&m, Objective::Prediction)?;
             return Some((m, cost, Objective::Prediction));
         }
-        let mut best: Option<(Model, f64)> = None;
+        let mut best: Option<(EffectModel, f64)> = None;
         for alt in &plan.alternatives {
             if let Some((m, c)) = self.p.fit(&alt.template, &alt.starts, plan.objective)
                 && best.as_ref().is_none_or(|b| c < b.1)

@@ -337,9 +337,9 @@ pub enum Objective {
 }
 
 /// A base model with the extensions kept so far, in the order they were kept (each catalogue entry at most
-/// once; see [`Model::can_add`] for the ones that do not combine).
+/// once; see [`EffectModel::can_add`] for the ones that do not combine).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Model {
+pub struct EffectModel {
     pub base: BaseModel,
     pub exts: Vec<Extension>,
 }
@@ -356,7 +356,7 @@ pub struct Simulation {
     pub mode: Vec<Mode>,
 }
 
-impl Model {
+impl EffectModel {
     pub fn plain(base: BaseModel) -> Self {
         Self {
             base,
@@ -401,7 +401,7 @@ impl Model {
         !has(id) && self.noise().is_none() && !(id == EffectId::CurvedBorders && self.has_contact())
     }
 
-    /// Whether `ext` can be added ([`Model::can_add`] for its entry, and no friction with the play inside
+    /// Whether `ext` can be added ([`EffectModel::can_add`] for its entry, and no friction with the play inside
     /// its spring on curved borders).
     pub fn admits(&self, ext: &Extension) -> bool {
         let contact = matches!(
@@ -613,7 +613,7 @@ impl Model {
     }
 
     /// Simulate a fitted model over a record (held-out part, another record): the same as
-    /// [`Model::simulate_into`] except that a visit to an inverted memory zone is simulated by the contract's
+    /// [`EffectModel::simulate_into`] except that a visit to an inverted memory zone is simulated by the contract's
     /// rule rather than refused (a model fitted where its zone was valid must still give a prediction).
     pub fn simulate(&self, u: &[f64], n: usize, limit: f64) -> Option<Simulation> {
         let mut s = Simulation::default();
@@ -720,13 +720,13 @@ mod tests {
             },
         ];
         // Each alone, and every pair that combines (in both orders of adding them).
-        let mut models: Vec<Model> = exts
+        let mut models: Vec<EffectModel> = exts
             .iter()
-            .map(|e| Model::plain(paper_base()).with(e.clone()))
+            .map(|e| EffectModel::plain(paper_base()).with(e.clone()))
             .collect();
         for a in &exts[1..] {
             for b in &exts[1..] {
-                let m = Model::plain(paper_base()).with(a.clone());
+                let m = EffectModel::plain(paper_base()).with(a.clone());
                 if m.admits(b) {
                     models.push(m.with(b.clone()));
                 }
@@ -751,7 +751,7 @@ mod tests {
 
     #[test]
     fn pack_unpack_round_trip() {
-        let m = Model::plain(paper_base())
+        let m = EffectModel::plain(paper_base())
             .with(Extension::GapDrift {
                 c1_rate: 1e-4,
                 c2_rate: -2e-4,
@@ -778,8 +778,12 @@ mod tests {
     fn unstable_model_is_refused_and_prediction_uses_the_noise_model() {
         let mut b = paper_base();
         b.a = vec![-2.5, 0.0];
-        assert!(Model::plain(b).simulate(&input(500), 500, 1e6).is_none());
-        let m = Model::plain(paper_base()).with(Extension::ColouredNoise { phi: vec![0.5] });
+        assert!(
+            EffectModel::plain(b)
+                .simulate(&input(500), 500, 1e6)
+                .is_none()
+        );
+        let m = EffectModel::plain(paper_base()).with(Extension::ColouredNoise { phi: vec![0.5] });
         assert!(
             !m.can_add(EffectId::GapDrift),
             "nothing after a noise model"

@@ -5,7 +5,7 @@ use serde::Serialize;
 use super::catalogue::EffectId;
 use super::decision::DECISION_RULE;
 use super::engine::{BacklashSupport, Candidate, Diagnosis, OneStep, TestResult};
-use super::model::{BaseModel, Extension, Model};
+use super::model::{BaseModel, EffectModel, Extension};
 use super::structure::StructureChoice;
 use crate::plant::effects::FrictionForm;
 
@@ -78,7 +78,13 @@ pub enum EffectParams {
 impl EffectParams {
     /// The parameters of `id` fitted as `m` over `n` samples, against the `current` model; `ts` (sample
     /// period, when known) adds per-second forms of per-sample parameters.
-    pub fn of(id: EffectId, m: &Model, current: &Model, n: usize, ts: Option<f64>) -> Self {
+    pub fn of(
+        id: EffectId,
+        m: &EffectModel,
+        current: &EffectModel,
+        n: usize,
+        ts: Option<f64>,
+    ) -> Self {
         let b = &m.base;
         match (id, m.extension(id).unwrap_or(&Extension::None)) {
             (EffectId::ExtraDelay, _) => EffectParams::ExtraDelay {
@@ -352,7 +358,7 @@ impl<'a> DiagnosisOut<'a> {
                 model: None,
             },
         };
-        let mut currents: Vec<&Model> = vec![&d.base];
+        let mut currents: Vec<&EffectModel> = vec![&d.base];
         currents.extend(d.later.iter().map(|r| &r.current));
         let mut befores = vec![d.base_heldout_rmse];
         befores.extend(d.later.iter().map(|r| r.current_heldout_rmse));
@@ -455,7 +461,7 @@ impl<'a> DiagnosisOut<'a> {
 /// A candidate fitted on top of `current`, for the JSON.
 fn candidate_out<'a>(
     c: &'a Candidate,
-    current: &Model,
+    current: &EffectModel,
     n: usize,
     ts: Option<f64>,
 ) -> CandidateOut<'a> {

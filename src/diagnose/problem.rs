@@ -16,7 +16,7 @@ use rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
 use super::fit::{LmOptions, covariance, levenberg_marquardt};
-use super::model::{BaseModel, Extension, Model, Objective, Simulation, is_stable};
+use super::model::{BaseModel, EffectModel, Extension, Objective, Simulation, is_stable};
 use super::structure::Structure;
 use crate::identify::mrgia::{Mrgia, MrgiaConfig};
 use crate::stats::std_dev;
@@ -112,7 +112,7 @@ impl<'a> Problem<'a> {
     /// Residuals of `m` on samples `0..n` into `out`.
     fn residuals(
         &self,
-        m: &Model,
+        m: &EffectModel,
         obj: Objective,
         n: usize,
         scratch: &mut Simulation,
@@ -140,7 +140,7 @@ impl<'a> Problem<'a> {
     }
 
     /// The fit-part cost of `m` (sum of squared residuals of the objective), `None` if it is not valid.
-    pub fn cost(&self, m: &Model, obj: Objective) -> Option<f64> {
+    pub fn cost(&self, m: &EffectModel, obj: Objective) -> Option<f64> {
         let mut out = Vec::with_capacity(self.n_fit);
         let ok = self.residuals(m, obj, self.n_fit, &mut Simulation::default(), &mut out);
         let c: f64 = out.iter().map(|v| v * v).sum();
@@ -148,7 +148,7 @@ impl<'a> Problem<'a> {
     }
 
     /// Typical magnitudes of the packed parameters of `m`.
-    fn typical(&self, m: &Model) -> Vec<f64> {
+    fn typical(&self, m: &EffectModel) -> Vec<f64> {
         let mut t = m.base.typical(self.y_scale);
         for e in &m.exts {
             t.extend(self.typical_ext(e));
@@ -179,7 +179,12 @@ impl<'a> Problem<'a> {
     }
 
     /// Fit `template`'s structure from `starts`. Returns the model and its fit-part cost.
-    pub fn fit(&self, template: &Model, starts: &[Model], obj: Objective) -> Option<(Model, f64)> {
+    pub fn fit(
+        &self,
+        template: &EffectModel,
+        starts: &[EffectModel],
+        obj: Objective,
+    ) -> Option<(EffectModel, f64)> {
         let ts = self.time_scale;
         let packed: Vec<Vec<f64>> = starts.iter().map(|s| s.pack(ts)).collect();
         let unpack = |th: &[f64]| template.unpack(th, ts);
@@ -192,7 +197,7 @@ impl<'a> Problem<'a> {
     /// best on the whole fit part.
     fn fit_packed(
         &self,
-        unpack: &(dyn Fn(&[f64]) -> Model + Sync),
+        unpack: &(dyn Fn(&[f64]) -> EffectModel + Sync),
         starts: &[Vec<f64>],
         typ: &[f64],
         obj: Objective,
@@ -246,7 +251,7 @@ impl<'a> Problem<'a> {
 
     /// Covariance of the plain model's parameters at `m` (its fit-part information matrix).
     pub fn plain_covariance(&self, m: &BaseModel) -> Option<nalgebra::DMatrix<f64>> {
-        let template = Model::plain(m.clone());
+        let template = EffectModel::plain(m.clone());
         let f = |th: &[f64], out: &mut Vec<f64>| {
             let mm = template.unpack(th, self.time_scale);
             SCRATCH
@@ -365,7 +370,7 @@ pub(crate) fn fit_linear(p: &Problem, s: Structure) -> Option<(BaseModel, f64)> 
     let na = s.na;
     let nb = s.nb;
     let unpack = move |th: &[f64]| {
-        Model::plain(linear_base(
+        EffectModel::plain(linear_base(
             s,
             &th[..na],
             &th[na..na + nb + 1],
@@ -417,7 +422,7 @@ pub(crate) fn fit_plain(
     seed: u64,
     linear: &(BaseModel, f64),
     extra: &[BaseModel],
-) -> Option<(Model, f64)> {
+) -> Option<(EffectModel, f64)> {
     let mut starts: Vec<BaseModel> = Vec::new();
     starts.extend(p.mrgia_start(s));
     if let Some((a, b, o)) = p.arx(s) {
@@ -454,7 +459,7 @@ pub(crate) fn fit_plain(
         c2: lin.c2 + 0.01 * p.y_scale,
         ..lin.clone()
     });
-    let models: Vec<Model> = starts.into_iter().map(Model::plain).collect();
+    let models: Vec<EffectModel> = starts.into_iter().map(EffectModel::plain).collect();
     let template = models[0].clone();
     let (mut best, mut cost) = p.fit(&template, &models, Objective::Simulation)?;
     // Perturbed restarts around the best.
@@ -506,7 +511,7 @@ pub(crate) fn fit_plain(
         }
     }
     if cost > *lin_cost {
-        return Some((Model::plain(lin.clone()), *lin_cost));
+        return Some((EffectModel::plain(lin.clone()), *lin_cost));
     }
     Some((best, cost))
 }

@@ -5,7 +5,7 @@
 //! every structure from its starts and keeps the lowest cost.
 
 use super::catalogue::EffectId;
-use super::model::{BaseModel, Extension, Model, Objective};
+use super::model::{BaseModel, EffectModel, Extension, Objective};
 use super::statistics::{ar_filter, ar_ls};
 use crate::plant::effects::FrictionForm;
 use crate::plant::{MAX_DELAY, MAX_ORDER};
@@ -14,7 +14,7 @@ use crate::stats::{quantile, rms};
 /// What the start points are computed from: the current model, its residual, and the residual tests'
 /// findings, all on the fit part.
 pub struct StartContext<'a> {
-    pub current: &'a Model,
+    pub current: &'a EffectModel,
     pub u: &'a [f64],
     pub y: &'a [f64],
     /// y - current model's output.
@@ -32,8 +32,8 @@ pub struct StartContext<'a> {
 
 /// One structure to fit and its start points.
 pub struct Alternative {
-    pub template: Model,
-    pub starts: Vec<Model>,
+    pub template: EffectModel,
+    pub starts: Vec<EffectModel>,
 }
 
 /// The fits a candidate needs.
@@ -43,7 +43,7 @@ pub struct Plan {
 }
 
 impl Plan {
-    fn one(template: Model, starts: Vec<Model>) -> Self {
+    fn one(template: EffectModel, starts: Vec<EffectModel>) -> Self {
         Self {
             objective: Objective::Simulation,
             alternatives: vec![Alternative { template, starts }],
@@ -68,7 +68,7 @@ pub fn plan(id: EffectId, cx: &StartContext) -> Option<Plan> {
     (!plan.alternatives.is_empty()).then_some(plan)
 }
 
-fn with_ext(cx: &StartContext, ext: Extension) -> Model {
+fn with_ext(cx: &StartContext, ext: Extension) -> EffectModel {
     cx.current.with(ext)
 }
 
@@ -160,7 +160,7 @@ fn coloured_noise(cx: &StartContext) -> Option<Plan> {
 fn saturation(cx: &StartContext) -> Option<Plan> {
     let q = |f: f64| quantile(cx.y, f);
     let levels = [cx.clip, (q(0.02)?, q(0.98)?), (q(0.1)?, q(0.9)?)];
-    let starts: Vec<Model> = levels
+    let starts: Vec<EffectModel> = levels
         .iter()
         .map(|&(lo, hi)| with_ext(cx, Extension::Saturation { lo, hi }))
         .collect();
@@ -205,7 +205,7 @@ fn quantization(cx: &StartContext) -> Option<Plan> {
     });
     let offset = q * s.atan2(c) / (2.0 * std::f64::consts::PI);
     let sigma = rms(cx.residual.iter().copied()).min(q);
-    let starts: Vec<Model> = [sigma, 0.3 * sigma, 0.05 * q]
+    let starts: Vec<EffectModel> = [sigma, 0.3 * sigma, 0.05 * q]
         .into_iter()
         .map(|sigma| {
             with_ext(

@@ -21,7 +21,7 @@ use serde::Serialize;
 
 use super::engine::min_samples;
 use super::fit::LmOptions;
-use super::model::Model;
+use super::model::EffectModel;
 use super::problem::{Problem, fit_linear, fit_plain, linear_base, stabilize};
 use crate::plant::{MAX_DELAY, MAX_ORDER};
 use crate::stats::rms_diff;
@@ -131,7 +131,7 @@ pub(crate) fn select(p: &Problem, max_delay: usize, n_total: usize) -> Structure
     let n_w = p.n_fit.min(SELECT_SAMPLES);
     let n_est = (2 * n_w / 3).max(1);
     let est = p.shortened(n_est);
-    let validation = |m: &Model| {
+    let validation = |m: &EffectModel| {
         m.simulate(p.u, n_w, p.limit)
             .map(|s| rms_diff(&p.y[n_est..n_w], &s.y[n_est..n_w]))
             .filter(|v| v.is_finite())
@@ -143,7 +143,7 @@ pub(crate) fn select(p: &Problem, max_delay: usize, n_total: usize) -> Structure
         .map(|&s| {
             let arx_rmse = est.arx(s).and_then(|(mut a, b, o)| {
                 stabilize(&mut a);
-                validation(&Model::plain(linear_base(s, &a, &b, o)))
+                validation(&EffectModel::plain(linear_base(s, &a, &b, o)))
             });
             StructureCandidate {
                 structure: s,
