@@ -1016,7 +1016,7 @@ fn non_finite_inputs_and_parameters_are_refused_with_a_log_line() {
                 0.0,
                 FMI2_FALSE,
                 0.0,
-                "tolerance NaN must be finite and > 0",
+                "tolerance NaN must be positive and finite",
             ),
             (
                 FMI2_FALSE,

@@ -500,7 +500,7 @@ impl Instance {
             return Err(format!("startTime {start} is not finite"));
         }
         if tolerance_defined && !(tolerance.is_finite() && tolerance > 0.0) {
-            return Err(format!("tolerance {tolerance} must be finite and > 0"));
+            return Err(format!("tolerance {tolerance} must be positive and finite"));
         }
         if stop_defined && !(stop.is_finite() && stop >= start) {
             return Err(format!(
@@ -520,7 +520,7 @@ impl Instance {
     pub fn exit_initialization(&mut self) -> Result<(), String> {
         let ts = self.slave.sample_period();
         if !(ts.is_finite() && ts > 0.0) {
-            return Err(format!("parameter Ts = {ts} must be finite and > 0"));
+            return Err(format!("parameter Ts = {ts} must be positive and finite"));
         }
         self.slave.exit_initialization()?;
         self.check_outputs("at the start")?;
@@ -706,7 +706,7 @@ impl Instance {
             ));
         }
         if h <= 0.0 {
-            return Err(format!("communicationStepSize {h} must be > 0"));
+            return Err(format!("communicationStepSize {h} must be positive"));
         }
         if (t - now).abs() > time_tolerance(now, ts) {
             return Err(format!(

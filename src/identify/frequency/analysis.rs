@@ -209,7 +209,7 @@ fn check_options(opts: &AnalysisOptions) -> Result<(), FrequencyError> {
         if let Some(v) = v
             && !(v.is_finite() && v > 0.0)
         {
-            return bad(name, v, "must be a finite number > 0");
+            return bad(name, v, "must be a positive finite number");
         }
     }
     if let Some(n) = opts.degree
