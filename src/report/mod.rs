@@ -5,4 +5,4 @@
 
 pub mod plot;
 
-pub use plot::{Panel, PlotError, Series, SeriesStyle, grid_plot, line_plot};
+pub use plot::{Axes, Panel, PlotError, Scale, Series, SeriesStyle, grid_plot, line_plot};

@@ -3,7 +3,7 @@
 use anyhow::{Context, Result};
 use backlash::identify::mrgia::{Mrgia, MrgiaConfig, StepResult};
 use backlash::io::{AtomicFile, ReadAhead, RowReader};
-use backlash::report::plot::{Series, line_plot};
+use backlash::report::plot::{Axes, Series, line_plot};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 use std::io::Write;
@@ -253,8 +253,7 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
             "sample k",
             "estimate",
             &series,
-            false,
-            false,
+            Axes::LINEAR,
         )?;
     }
 

@@ -11,7 +11,7 @@ use backlash::identify::oe::{
 };
 use backlash::io::{Table, write_atomic};
 use backlash::plant::{ArxParams, BacklashParams, MAX_DELAY, PlantParams};
-use backlash::report::plot::{Series, line_plot};
+use backlash::report::plot::{Axes, Series, line_plot};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
 use std::io::Write;
@@ -172,8 +172,7 @@ pub fn run_oe(args: &OeArgs) -> Result<()> {
                     Series::line("OE model", pts(&w)).color(0),
                     Series::dashed(&format!("start ({})", f.start_method), pts(&w0)).color(1),
                 ],
-                false,
-                false,
+                Axes::LINEAR,
             )?;
         }
     }
