@@ -86,7 +86,7 @@ RECORDS = [
         time_col="t",
         decimate=16,
         fallback=(0, 0, 1),
-        note="friction damper with play, 0.5 Hz sine; 1024 Hz / 16 (README's choice)",
+        note="friction damper with play, 0.5 Hz sine; 1024 Hz / 16 (the choice of docs/RESULTS.md)",
     ),
     Record(
         "brfd-kocaeli",
