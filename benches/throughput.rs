@@ -1,4 +1,4 @@
-//! Throughput of the hot paths, as criterion measures them. Ratios, not absolute times, are what the README
+//! Throughput of the hot paths, as criterion measures them. Ratios, not absolute times, are what docs/RESULTS.md
 //! quotes: each group has a baseline measured in the same run.
 //!
 //! `cargo bench --bench throughput`; the FMU step costs are in `cargo bench --bench fmu`.
@@ -73,7 +73,7 @@ fn plant_and_backlash(c: &mut Criterion) {
 /// MRGIA per sample on the paper example with sensor noise (std 0.05): the gate (42) lets ~69% of the samples
 /// update for both orders. (Noise-free, the over-parameterised na = nb = 4 run gets stuck at the gate (module
 /// docs of `identify::mrgia`) and updates on 0.6% of the samples, which would time the no-update path.) The
-/// plant step is the baseline measured in the same group: the README quotes MRGIA per sample in plant steps.
+/// plant step is the baseline measured in the same group: docs/RESULTS.md quotes MRGIA per sample in plant steps.
 fn mrgia(c: &mut Criterion) {
     let u = paper_input(N, 2);
     let mut params = PlantParams::PAPER;

@@ -8,7 +8,7 @@ The CLI is timed end to end as a user runs it (process start, CSV parsing, the e
 of --repeats runs. The NumPy implementation (one Python iteration per sample on NumPy arrays) is timed on the
 first --numpy-samples samples and extrapolated linearly to the whole record (its cost per sample is constant:
 fixed-size arrays, no growth); pass --numpy-samples equal to --samples to time it on everything. Both run on
-the same data in the same run; the ratio is what the README quotes. The two also agree on the subset's
+the same data in the same run; the ratio is what docs/RESULTS.md quotes. The two also agree on the subset's
 estimate (printed), as tests/python/test_mrgia_reference.py checks to 1e-9.
 """
 import argparse

@@ -40,6 +40,7 @@ import json
 import math
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -86,7 +87,7 @@ RECORDS = [
         time_col="t",
         decimate=16,
         fallback=(0, 0, 1),
-        note="friction damper with play, 0.5 Hz sine; 1024 Hz / 16 (README's choice)",
+        note="friction damper with play, 0.5 Hz sine; 1024 Hz / 16 (the choice of docs/RESULTS.md)",
     ),
     Record(
         "brfd-kocaeli",
@@ -342,7 +343,7 @@ class DiagnoseResult:
     reason: str = ""
 
 
-GNU_TIME = "/usr/bin/time"
+GNU_TIME = shutil.which("time")  # GNU time, found on PATH (the shell builtin has no -f)
 
 
 def run_process(cmd: list[str], timeout: float) -> tuple[int | None, str, str, float, float]:
@@ -353,7 +354,7 @@ def run_process(cmd: list[str], timeout: float) -> tuple[int | None, str, str, f
     this process's size; GNU time (Debian package `time`) starts cmd from its own small process and reports
     cmd's peak. Without it the peak is read from /proc/PID/status (VmHWM) while cmd runs, which can miss a
     rise in its last few milliseconds."""
-    use_time = os.access(GNU_TIME, os.X_OK)
+    use_time = GNU_TIME is not None
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err, \
             tempfile.NamedTemporaryFile("r") as peak_file:
         full = [GNU_TIME, "-f", "%M", "-o", peak_file.name, *cmd] if use_time else cmd

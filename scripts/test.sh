@@ -6,8 +6,10 @@ bash scripts/setup.sh
 
 echo "== cargo fmt --check"
 cargo fmt --check
-echo "== cargo clippy"
+echo "== cargo clippy (the lints of Cargo.toml's [lints] table, warnings as errors)"
 cargo clippy --all-targets -- -D warnings
+echo "== cargo doc (broken or private links in the documentation are errors)"
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
 echo "== cargo build --release (both FMUs and the CLI)"
 cargo build --release
 echo "== cargo test --release"

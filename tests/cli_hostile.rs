@@ -1,4 +1,4 @@
-//! The command line under hostile input (the data-file rules of the project's interface, README).
+//! The command line under hostile input (the data-file rules of docs/INTERFACE.md).
 //!
 //! Every malformed file is refused with a non-zero exit, nothing on stdout, and a message on stderr that
 //! names the file and, where the fault has one, the line and the column: empty file, header only, missing

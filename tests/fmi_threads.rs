@@ -11,6 +11,12 @@
 //!
 //! The logger is variadic C; see tests/common/mod.rs for why a five-argument non-variadic function receives
 //! the layer's calls (no variadic argument) correctly on x86_64 Linux, to which this file is gated.
+#![allow(
+    clippy::undocumented_unsafe_blocks,
+    clippy::multiple_unsafe_ops_per_block,
+    reason = "the tests call the exported FMI functions directly, many with hostile arguments on purpose: \
+              what each call passes and why is the test itself"
+)]
 #![cfg(all(target_arch = "x86_64", target_os = "linux"))]
 
 mod common;

@@ -1,7 +1,7 @@
 //! Sampled-data timing of both FMUs under the step patterns FMI masters use, through the exported C functions
 //! (in process), and the FMU-state registry and the logger's format.
 //!
-//! The contract (CONTRACT.md, README "What masters can expect"): samples happen at the instants
+//! The contract (docs/INTERFACE.md, "What masters can expect"): samples happen at the instants
 //! t_k = start + k Ts that the steps reach; between instants the outputs hold sample k's values; u(k) is the
 //! value of u current at t_k. Stepping by Ts, by Ts/m or by n Ts gives the same values at the instants (bit for
 //! bit); float32 and float64 sums of steps are never refused. The estimator takes at most one instant per step
@@ -9,6 +9,12 @@
 //!
 //! The logger is variadic C; see tests/common/mod.rs for why a five-argument non-variadic function receives
 //! the layer's calls correctly on x86_64 Linux, to which this file is gated.
+#![allow(
+    clippy::undocumented_unsafe_blocks,
+    clippy::multiple_unsafe_ops_per_block,
+    reason = "the tests call the exported FMI functions directly, many with hostile arguments on purpose: \
+              what each call passes and why is the test itself"
+)]
 #![cfg(all(target_arch = "x86_64", target_os = "linux"))]
 
 mod common;

@@ -14,6 +14,12 @@
 //! step, so about 2-4 s; `cargo test --release` is how CI runs the suite) and 1 million in debug builds
 //! (unoptimised code is ~30x slower). Counting is per thread, so the test harness's own threads do not
 //! disturb it. Logging is off, as in a production run (a logged call formats its message, which allocates).
+#![allow(
+    clippy::undocumented_unsafe_blocks,
+    clippy::multiple_unsafe_ops_per_block,
+    reason = "the tests call the exported FMI functions directly, many with hostile arguments on purpose: \
+              what each call passes and why is the test itself"
+)]
 
 use backlash::fmi2::exports::*;
 use backlash::fmi2::ffi::*;

@@ -7,7 +7,7 @@
 //!    Every model is simulated over the whole record from rest, so the held-out part starts from the state
 //!    the fit part left (nothing is re-initialised at the split). Every error called "held-out RMSE" below
 //!    is this free-run simulation error.
-//! 2. **Structure.** Declared orders and delay win; without them [`super::structure::select`] chooses them
+//! 2. **Structure.** Declared orders and delay win; without them `structure::select` chooses them
 //!    on the fit part only (see there).
 //! 3. **Fit the linear model and the backlash model.** The best linear output-error model of the structure
 //!    (backlash replaced by a straight line through an offset, which is the backlash with c1 = -c2 and
@@ -91,7 +91,7 @@ use crate::stats::{rms, rms_diff, std_dev};
 /// Settings of a diagnosis.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DiagnoseConfig {
-    /// The declared structure; `None`: chosen from the data ([`structure::select`]).
+    /// The declared structure; `None`: chosen from the data (`structure::select`).
     pub structure: Option<Structure>,
     /// The longest delay the structure selection tries (it also stays below a tenth of the fit part).
     pub max_delay: usize,

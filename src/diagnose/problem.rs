@@ -1,5 +1,5 @@
 //! Fitting models on a record: the fit part, its exploration window, the linear model and the plain
-//! backlash model with their starts. The strategy of every fit ([`Problem::fit`]): screen many starts by
+//! backlash model with their starts. The strategy of every fit (`Problem::fit`): screen many starts by
 //! their cost on the exploration window, run short fits from the best few there, refine the best on the
 //! whole fit part (which, with the statistical stopping rule of [`super::fit`], takes a few iterations).
 

@@ -19,7 +19,7 @@ use super::model::Extension;
 use super::residual::{self, Z95};
 use crate::io::write_atomic;
 use crate::plant::Mode;
-use crate::report::plot::{Panel, PlotError, Series, grid_plot, line_plot};
+use crate::report::plot::{Axes, Panel, PlotError, Series, grid_plot, line_plot};
 
 /// Why a report could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -120,8 +120,7 @@ pub fn write_report(
             Series::line("declared model", pts(th, &before[nf..])).color(3),
             Series::line(&after_label, pts(th, &after[nf..])).color(0),
         ],
-        false,
-        false,
+        Axes::LINEAR,
     )?;
     figures.push((
         "heldout.png".into(),
@@ -151,8 +150,7 @@ pub fn write_report(
             Series::line(&after_label, pts(t, &e1)).color(0),
             Series::dashed("fit | held-out", vec![(t[nf], lo), (t[nf], hi)]).color(7),
         ],
-        false,
-        false,
+        Axes::LINEAR,
     )?;
     figures.push((
         "residual.png".into(),
@@ -239,8 +237,7 @@ pub fn write_report(
                 Series::line("declared model", pts(&v.t, &v.result.before)).color(3),
                 Series::line(&after_label, pts(&v.t, &v.result.after)).color(0),
             ],
-            false,
-            false,
+            Axes::LINEAR,
         )?;
         figures.push((
             file,
@@ -285,8 +282,7 @@ fn steps_plot(dir: &Path, d: &Diagnosis, input: &ReportInput) -> Result<String, 
             Series::points("", errors).color(0),
             Series::dashed("best linear model", linear).color(7),
         ],
-        false,
-        false,
+        Axes::LINEAR,
     )?;
     let names: Vec<String> = d
         .steps()
@@ -363,8 +359,7 @@ fn evidence(
                     Series::dashed("fitted drift, upper", lu).color(1),
                     Series::dashed("fitted drift, lower", ld).color(2),
                 ],
-                false,
-                false,
+                Axes::LINEAR,
             )?;
             Ok(format!(
                 "Pointing test: {test}. Running mean ({win} samples) of the declared model's residual on the upper and \
@@ -422,8 +417,7 @@ fn evidence(
                     Series::line("fitted lower curvature", curve(lower, c.model.base.c2, &dn))
                         .color(2),
                 ],
-                false,
-                false,
+                Axes::LINEAR,
             )?;
             Ok(format!(
                 "Pointing test: {test}. The declared model's residual on engaged samples against its x_hat: straight \
@@ -448,8 +442,7 @@ fn evidence(
                     Series::dashed("fitted frequency", vec![(*omega, pmin), (*omega, pmax)])
                         .color(0),
                 ],
-                true,
-                true,
+                Axes::LOG_LOG,
             )?;
             Ok(format!(
                 "Pointing test: {test}. A line in the residual's spectrum stands far above the noise floor; dashed: \
@@ -471,8 +464,7 @@ fn evidence(
                     Series::line("declared model", pts(&t[k0..k1], &sim.y[k0..k1])).color(3),
                     Series::line(after_label, pts(&t[k0..k1], &c.output[k0..k1])).color(0),
                 ],
-                false,
-                false,
+                Axes::LINEAR,
             )?;
             Ok(format!(
                 "Pointing test: {test}. The measured values sit on a grid of step {} (the lattice test); the extended \
@@ -499,8 +491,7 @@ fn evidence(
                     Series::dashed("95% band", vec![(1.0, band), (lags as f64, band)]).color(7),
                     Series::dashed("", vec![(1.0, -band), (lags as f64, -band)]).color(7),
                 ],
-                false,
-                false,
+                Axes::LINEAR,
             )?;
             Ok(format!(
                 "Pointing test: {test}. The residual is correlated over many lags (red) in the way an AR({}) \
@@ -526,8 +517,7 @@ fn evidence(
                     Series::dashed("95% band", vec![(0.0, band), (lags as f64, band)]).color(7),
                     Series::dashed("", vec![(0.0, -band), (lags as f64, -band)]).color(7),
                 ],
-                false,
-                false,
+                Axes::LINEAR,
             )?;
             Ok(format!(
                 "Pointing test: {test}. The declared model's residual still depends on past inputs (red points outside \
@@ -556,8 +546,7 @@ fn evidence(
                 input.columns[1],
                 input.columns[2],
                 &series,
-                false,
-                false,
+                Axes::LINEAR,
             )?;
             Ok(match id {
                 Some(EffectId::Friction) => format!(

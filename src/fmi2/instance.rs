@@ -1,6 +1,10 @@
 //! An FMU instance: the state machine, argument checks, logging and FMU state, for any [`Model`].
 //!
-//! Everything here is safe Rust; the C boundary (pointers, catch_unwind) is in `exports`.
+//! The importer's pointers and the panic guard are handled in `exports`. The unsafe code here is confined to
+//! what the instance itself owns across the C boundary: the FMU states it hands out as raw pointers (a
+//! registry of live Boxes; a pointer is compared against it before it is read through or freed), the call
+//! of the importer's logger, and `Send`. Each unsafe block states why it holds.
+//!
 //! Every refused call returns `Err(reason)`; the caller logs the reason under `logStatusError`, returns
 //! fmi2Error and, as the standard prescribes for fmi2Error, puts the instance in the `error` state, from which
 //! only getters, fmi2Reset, fmi2SetFMUstate and fmi2FreeInstance lead on.
@@ -367,8 +371,9 @@ pub struct Instance {
     issued: Vec<*mut SavedState>,
 }
 
-// The callbacks hold raw pointers owned by the importer; the standard lets the importer call an instance from
-// any thread as long as calls are not concurrent, so the instance may move between threads.
+// SAFETY: the raw pointers are the importer's callbacks and environment, and the FMU states this instance
+// owns; the standard lets the importer call an instance from any thread as long as calls are not concurrent,
+// so the instance may move between threads.
 unsafe impl Send for Instance {}
 
 fn cstring(text: &str) -> CString {
@@ -500,7 +505,7 @@ impl Instance {
             return Err(format!("startTime {start} is not finite"));
         }
         if tolerance_defined && !(tolerance.is_finite() && tolerance > 0.0) {
-            return Err(format!("tolerance {tolerance} must be finite and > 0"));
+            return Err(format!("tolerance {tolerance} must be positive and finite"));
         }
         if stop_defined && !(stop.is_finite() && stop >= start) {
             return Err(format!(
@@ -520,7 +525,7 @@ impl Instance {
     pub fn exit_initialization(&mut self) -> Result<(), String> {
         let ts = self.slave.sample_period();
         if !(ts.is_finite() && ts > 0.0) {
-            return Err(format!("parameter Ts = {ts} must be finite and > 0"));
+            return Err(format!("parameter Ts = {ts} must be positive and finite"));
         }
         self.slave.exit_initialization()?;
         self.check_outputs("at the start")?;
@@ -579,7 +584,7 @@ impl Instance {
 
     /// Values of the variables `vrs` of type `ty`, all or nothing: `out(k, value)` is called for every `k` in
     /// order only once all references are known and all values are valid. No allocation for up to
-    /// [`STACK_VRS`] references and non-string types.
+    /// `STACK_VRS` references and non-string types.
     pub fn get_with(
         &mut self,
         ty: VarType,
@@ -657,7 +662,7 @@ impl Instance {
 
     /// Set variables, the `k`-th to `value(k)`: every value is converted and checked before any is applied
     /// (`value` is called twice per variable: to check, then to apply). No allocation for up to
-    /// [`STACK_VRS`] references and non-string types.
+    /// `STACK_VRS` references and non-string types.
     pub fn set_with(
         &mut self,
         ty: VarType,
@@ -706,7 +711,7 @@ impl Instance {
             ));
         }
         if h <= 0.0 {
-            return Err(format!("communicationStepSize {h} must be > 0"));
+            return Err(format!("communicationStepSize {h} must be positive"));
         }
         if (t - now).abs() > time_tolerance(now, ts) {
             return Err(format!(
@@ -888,6 +893,15 @@ impl Instance {
         let q = self.find_issued(p)?;
         // SAFETY: `q` comes from the registry: a live Box this instance made; it lives while `self` holds it.
         Ok(unsafe { &*q })
+    }
+
+    /// Restore the state behind `p` if this instance issued it and has not freed it.
+    pub fn restore_issued_state(&mut self, p: *const SavedState) -> Result<(), String> {
+        let q = self.find_issued(p)?;
+        // SAFETY: `q` comes from the registry: a live Box this instance made. Restoring reads it and leaves
+        // the registry alone, so it stays alive and unaliased by any `&mut` meanwhile.
+        let saved = unsafe { &*q };
+        self.restore_state(saved)
     }
 
     /// Free a state this instance issued.

@@ -29,7 +29,7 @@ impl EstimatorFmu {
     fn config(&self) -> Result<MrgiaConfig, String> {
         let order = |name: &str, v: i32| {
             usize::try_from(v)
-                .map_err(|_| format!("parameter {name} = {v} is invalid: must be >= 0"))
+                .map_err(|_| format!("parameter {name} = {v} is invalid: must not be negative"))
         };
         let (na, nb, delay) = (
             order("na", self.na)?,

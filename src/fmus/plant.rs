@@ -136,7 +136,7 @@ impl Bench {
         };
         if let Some(before_noise) = before_noise {
             if self.sat[0] > self.sat[1] {
-                return bad("sat_lo", self.sat[0], "must be <= sat_hi");
+                return bad("sat_lo", self.sat[0], "must not exceed sat_hi");
             }
             e.saturation = Some(Saturation {
                 lo: self.sat[0],
@@ -161,7 +161,7 @@ impl PlantFmu {
         let mut p = self.params;
         let order = |name: &str, v: i32| {
             usize::try_from(v)
-                .map_err(|_| format!("parameter {name} = {v} is invalid: must be >= 0"))
+                .map_err(|_| format!("parameter {name} = {v} is invalid: must not be negative"))
         };
         p.arx.na = order("na", self.na)?;
         p.arx.nb = order("nb", self.nb)?;

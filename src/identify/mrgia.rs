@@ -117,6 +117,7 @@ pub use study::{
 
 use crate::plant::{
     MAX_DELAY, MAX_ORDER, ParamError, check_finite, check_non_negative, check_positive,
+    check_structure,
 };
 use nalgebra::SVector;
 use rls::{Core, MAX_N, Rls, WithRls};
@@ -215,26 +216,14 @@ impl MrgiaConfig {
 
     /// Every field in range; the error names the first bad field.
     pub fn validate(&self) -> Result<(), ParamError> {
-        if self.na > MAX_ORDER {
-            return Err(ParamError::new("na", self.na as f64, "must be in 0..=4"));
-        }
-        if self.nb > MAX_ORDER {
-            return Err(ParamError::new("nb", self.nb as f64, "must be in 0..=4"));
-        }
-        if self.delay < 1 || self.delay > MAX_DELAY {
-            return Err(ParamError::new(
-                "delay",
-                self.delay as f64,
-                "must be in 1..=64 samples",
-            ));
-        }
+        check_structure(self.na, self.nb, self.delay)?;
         check_positive("p0", self.p0)?;
         check_positive("rho_exp", self.rho_exp)?;
         if self.rho_exp > 1.0 {
             return Err(ParamError::new(
                 "rho_exp",
                 self.rho_exp,
-                "must be in (0, 1]",
+                "must be above 0 and at most 1",
             ));
         }
         check_non_negative("rho_min", self.rho_min)?;
@@ -242,7 +231,7 @@ impl MrgiaConfig {
             return Err(ParamError::new(
                 "rho_min",
                 self.rho_min,
-                "must be in [0, 1)",
+                "must be at least 0 and below 1",
             ));
         }
         check_non_negative("eps", self.eps)?;

@@ -140,7 +140,8 @@ pub use study::{
 
 use super::mrgia::{self, Estimate, MrgiaConfig};
 use crate::plant::{
-    ArxParams, BacklashParams, MAX_DELAY, MAX_ORDER, ParamError, PlantParams, check_positive,
+    ArxParams, BacklashParams, MAX_ORDER, ParamError, PlantParams, check_delay, check_order,
+    check_positive, check_structure,
 };
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use serde::{Deserialize, Serialize};
@@ -229,24 +230,12 @@ impl OeConfig {
 
     /// Orders and delay in range, sensible optimiser settings.
     pub fn validate(&self) -> Result<(), ParamError> {
-        if self.na > MAX_ORDER {
-            return Err(ParamError::new("na", self.na as f64, "must be in 0..=4"));
-        }
-        if self.nb > MAX_ORDER {
-            return Err(ParamError::new("nb", self.nb as f64, "must be in 0..=4"));
-        }
-        if self.delay < 1 || self.delay > MAX_DELAY {
-            return Err(ParamError::new(
-                "delay",
-                self.delay as f64,
-                "must be in 1..=64 samples",
-            ));
-        }
+        check_structure(self.na, self.nb, self.delay)?;
         if self.max_iter == 0 {
-            return Err(ParamError::new("max_iter", 0.0, "must be >= 1"));
+            return Err(ParamError::new("max_iter", 0.0, "must be at least 1"));
         }
         if !(self.tol.is_finite() && self.tol > 0.0) {
-            return Err(ParamError::new("tol", self.tol, "must be > 0"));
+            return Err(ParamError::new("tol", self.tol, "must be positive"));
         }
         Ok(())
     }
@@ -328,20 +317,11 @@ pub fn plant_of(est: &Estimate, delay: usize) -> Result<PlantParams, ParamError>
 }
 
 fn structure(est: &Estimate) -> Result<(usize, usize), ParamError> {
-    if est.a.len() > MAX_ORDER {
-        return Err(ParamError::new(
-            "na",
-            est.a.len() as f64,
-            "must be in 0..=4",
-        ));
+    check_order("na", est.a.len())?;
+    if est.b.is_empty() {
+        return Err(ParamError::new("nb", -1.0, "must be between 0 and 4"));
     }
-    if est.b.is_empty() || est.b.len() > MAX_ORDER + 1 {
-        return Err(ParamError::new(
-            "nb",
-            est.b.len() as f64 - 1.0,
-            "must be in 0..=4",
-        ));
-    }
+    check_order("nb", est.b.len() - 1)?;
     Ok((est.a.len(), est.b.len() - 1))
 }
 
@@ -471,13 +451,7 @@ struct Theta {
 impl Theta {
     fn new(est: &Estimate, delay: usize) -> Result<Self, ParamError> {
         let (na, nb) = structure(est)?;
-        if !(1..=MAX_DELAY).contains(&delay) {
-            return Err(ParamError::new(
-                "delay",
-                delay as f64,
-                "must be in 1..=64 samples",
-            ));
-        }
+        check_delay(delay)?;
         let mut v = [0.0; MAX_P];
         let flat = theta_of(est);
         v[..flat.len()].copy_from_slice(&flat);

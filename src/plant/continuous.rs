@@ -83,7 +83,7 @@ impl TransferFunction {
             return Err(ParamError::new(
                 "den",
                 self.den.len() as f64,
-                "must have 1 to 5 coefficients (degree 0..=4)",
+                "must have between 1 and 5 coefficients (degree between 0 and 4)",
             ));
         }
         for (k, v) in self.den.iter().enumerate() {

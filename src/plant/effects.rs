@@ -220,14 +220,18 @@ impl Effects {
         if let Some(c) = &self.coloured_noise {
             check_finite("phi", c.phi)?;
             if c.phi.abs() >= 1.0 {
-                return Err(ParamError::new("phi", c.phi, "must be in (-1, 1)"));
+                return Err(ParamError::new(
+                    "phi",
+                    c.phi,
+                    "must be strictly between -1 and 1",
+                ));
             }
         }
         if let Some(s) = &self.saturation {
             check_finite("lo", s.lo)?;
             check_finite("hi", s.hi)?;
             if s.lo > s.hi {
-                return Err(ParamError::new("lo", s.lo, "must be <= hi"));
+                return Err(ParamError::new("lo", s.lo, "must not exceed hi"));
             }
         }
         if let Some(q) = &self.quantization {

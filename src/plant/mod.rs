@@ -56,7 +56,7 @@ pub(crate) fn check_positive(name: &str, v: f64) -> Result<(), ParamError> {
     if v > 0.0 {
         Ok(())
     } else {
-        Err(ParamError::new(name, v, "must be > 0"))
+        Err(ParamError::new(name, v, "must be positive"))
     }
 }
 
@@ -65,26 +65,46 @@ pub(crate) fn check_non_negative(name: &str, v: f64) -> Result<(), ParamError> {
     if v >= 0.0 {
         Ok(())
     } else {
-        Err(ParamError::new(name, v, "must be >= 0"))
+        Err(ParamError::new(name, v, "must not be negative"))
     }
+}
+
+// The range messages below spell these bounds out in words; they change together.
+const _: () = assert!(MAX_ORDER == 4 && MAX_DELAY == 64);
+
+/// An order (`na`, `nb`, or a degree) between 0 and [`MAX_ORDER`].
+pub(crate) fn check_order(name: &str, n: usize) -> Result<(), ParamError> {
+    if n <= MAX_ORDER {
+        Ok(())
+    } else {
+        Err(ParamError::new(name, n as f64, "must be between 0 and 4"))
+    }
+}
+
+/// A delay in samples between 1 and [`MAX_DELAY`].
+pub(crate) fn check_delay(delay: usize) -> Result<(), ParamError> {
+    if (1..=MAX_DELAY).contains(&delay) {
+        Ok(())
+    } else {
+        Err(ParamError::new(
+            "delay",
+            delay as f64,
+            "must be between 1 and 64 samples",
+        ))
+    }
+}
+
+/// The structure of an ARX block: both orders and the delay in range.
+pub(crate) fn check_structure(na: usize, nb: usize, delay: usize) -> Result<(), ParamError> {
+    check_order("na", na)?;
+    check_order("nb", nb)?;
+    check_delay(delay)
 }
 
 impl ArxParams {
     /// Orders in range, delay >= 1, finite coefficients.
     pub fn validate(&self) -> Result<(), ParamError> {
-        if self.na > MAX_ORDER {
-            return Err(ParamError::new("na", self.na as f64, "must be in 0..=4"));
-        }
-        if self.nb > MAX_ORDER {
-            return Err(ParamError::new("nb", self.nb as f64, "must be in 0..=4"));
-        }
-        if self.delay < 1 || self.delay > MAX_DELAY {
-            return Err(ParamError::new(
-                "delay",
-                self.delay as f64,
-                "must be in 1..=64 samples",
-            ));
-        }
+        check_structure(self.na, self.nb, self.delay)?;
         for (i, a) in self.a.iter().enumerate() {
             check_finite(&format!("a{}", i + 1), *a)?;
         }

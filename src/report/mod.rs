@@ -5,7 +5,7 @@
 
 pub mod plot;
 
-pub use plot::{Panel, PlotError, Series, SeriesStyle, grid_plot, line_plot};
+pub use plot::{Axes, Panel, PlotError, Scale, Series, SeriesStyle, grid_plot, line_plot};
 
 /// A number for people: 0 as "0", four decimals in [1e-3, 1e4), four significant digits in scientific
 /// notation outside (so that a tiny error never prints as 0.0000).

@@ -7,7 +7,7 @@
 //! default range, and constant data get a range padded around the constant.
 //!
 //! ```no_run
-//! use backlash::report::plot::{line_plot, Series};
+//! use backlash::report::plot::{Axes, line_plot, Series};
 //! let pts: Vec<(f64, f64)> = (0..100).map(|k| (k as f64, (k as f64 / 10.0).sin())).collect();
 //! line_plot(
 //!     std::path::Path::new("sine.png"),
@@ -15,8 +15,7 @@
 //!     "k",
 //!     "sin(k/10)",
 //!     &[Series::line("sin", pts)],
-//!     false,
-//!     false,
+//!     Axes::LINEAR,
 //! )
 //! .unwrap();
 //! ```
@@ -101,6 +100,40 @@ impl<'a> Series<'a> {
     }
 }
 
+/// How an axis maps values to positions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Scale {
+    #[default]
+    Linear,
+    /// Logarithmic: values `<= 0` cannot be shown and are skipped.
+    Log,
+}
+
+/// The scales of a chart's horizontal (`x`) and vertical (`y`) axes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Axes {
+    pub x: Scale,
+    pub y: Scale,
+}
+
+impl Axes {
+    /// Both axes linear.
+    pub const LINEAR: Axes = Axes {
+        x: Scale::Linear,
+        y: Scale::Linear,
+    };
+    /// Logarithmic x (a frequency, say), linear y.
+    pub const LOG_X: Axes = Axes {
+        x: Scale::Log,
+        y: Scale::Linear,
+    };
+    /// Both axes logarithmic.
+    pub const LOG_LOG: Axes = Axes {
+        x: Scale::Log,
+        y: Scale::Log,
+    };
+}
+
 /// One panel of a [`grid_plot`] (or the whole of a [`line_plot`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Panel<'a> {
@@ -130,16 +163,15 @@ pub fn line_plot(
     x_label: &str,
     y_label: &str,
     series: &[Series],
-    log_x: bool,
-    log_y: bool,
+    axes: Axes,
 ) -> Result<(), PlotError> {
     let panel = Panel {
         title,
         x_label,
         y_label,
         series: series.to_vec(),
-        log_x,
-        log_y,
+        log_x: axes.x == Scale::Log,
+        log_y: axes.y == Scale::Log,
     };
     check_folder(path)?;
     let root = BitMapBackend::new(path, SINGLE_SIZE).into_drawing_area();
@@ -854,8 +886,7 @@ mod tests {
                 Series::points("points", vec![(1.0, 1.5), (2.0, f64::NAN), (3.0, 1.2)]).color(2),
                 Series::line("empty", Vec::new()).color(3),
             ],
-            false,
-            false,
+            Axes::LINEAR,
         )
         .unwrap();
         assert!(is_png(&p));
@@ -866,13 +897,12 @@ mod tests {
             "w",
             "|G|",
             &[Series::line("", sine)],
-            true,
-            true,
+            Axes::LOG_LOG,
         )
         .unwrap();
         assert!(is_png(&p));
         let p = tmp("empty.png");
-        line_plot(&p, "Nothing", "x", "y", &[], true, false).unwrap();
+        line_plot(&p, "Nothing", "x", "y", &[], Axes::LOG_X).unwrap();
         assert!(is_png(&p));
         let p = tmp("grid.png");
         let panel = |t| Panel {
@@ -896,8 +926,7 @@ mod tests {
                 "x",
                 "y",
                 &[],
-                false,
-                false
+                Axes::LINEAR,
             ),
             Err(PlotError::NoFolder { .. })
         ));

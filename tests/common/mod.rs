@@ -6,7 +6,7 @@
 //! exactly like a non-variadic call, so a five-argument `extern "C"` function transmuted to the logger type
 //! receives them. The recorder prints the format as printf would (`%%` -> `%`) and records a marker if the
 //! format holds a conversion, which would read an argument that is not there.
-#![allow(dead_code)]
+#![allow(dead_code, reason = "each test crate uses only some of these helpers")]
 
 use backlash::fmi2::ffi::*;
 use std::ffi::{CStr, c_char};
@@ -76,7 +76,7 @@ pub unsafe extern "C" fn record(
 pub fn logger() -> Fmi2CallbackLogger {
     // SAFETY: on x86_64 SysV a call through the variadic type with no vararg
     // is ABI-identical to a call of this five-argument function.
-    Some(unsafe {
+    let variadic = unsafe {
         std::mem::transmute::<
             FixedLogger,
             unsafe extern "C" fn(
@@ -88,5 +88,6 @@ pub fn logger() -> Fmi2CallbackLogger {
                 ...
             ),
         >(record)
-    })
+    };
+    Some(variadic)
 }

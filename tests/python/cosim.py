@@ -1,6 +1,6 @@
 """A small co-simulation master for the plant + estimator pair, on fmpy's FMU2Slave.
 
-Wiring (the FMUs' timing in the README): at t_k = k*Ts the same input u(k) goes to plant.u and estimator.u, and the
+Wiring (the FMUs' timing in docs/INTERFACE.md): at t_k = k*Ts the same input u(k) goes to plant.u and estimator.u, and the
 plant's output y(k) (which depends on inputs up to u(k-delay) only: no direct feedthrough) goes to
 estimator.y. The communication step from t_k then advances both by one sample: after it the estimator's
 outputs are the estimates after sample k, and the plant's output is y(k+1).

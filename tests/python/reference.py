@@ -1,4 +1,4 @@
-"""An independent NumPy implementation of the contract's plant equations (the README's BacklashPlant.fmu section).
+"""An independent NumPy implementation of the contract's plant equations (docs/INTERFACE.md, BacklashPlant.fmu).
 
 Written from the contract text, sharing no code with the Rust library:
     x(k) = -sum_{i=1..na} a_i x(k-i) + sum_{j=0..nb} b_j u(k-delay-j),   x, u, y = 0 before k = 0

@@ -82,7 +82,7 @@ def test_saturation_is_named(cli, tmp_path):
 
 
 def test_measured_friction_damper(cli, tmp_path):
-    """The README's command: the winner is friction and it at least halves the held-out RMSE."""
+    """The command of docs/RESULTS.md: the winner is friction and it at least halves the held-out RMSE."""
     out = subprocess.run(
         [
             cli, "diagnose", str(BRFD / "char_0.5Hz_36lb_1in.csv"), "--na", "0", "--nb", "0", "--delay", "1",

@@ -1,4 +1,4 @@
-"""Both FMUs driven as FMI masters drive them with their defaults (README, "What masters can expect").
+"""Both FMUs driven as FMI masters drive them with their defaults (docs/INTERFACE.md, "What masters can expect").
 
 Step patterns measured in the tools: the FMU Compliance Checker steps (stop - start) / 500 of the default
 experiment; OMSimulator 1e-3; PyFMI 0.01 with error control halving the step; masters that keep the step in a

@@ -47,7 +47,7 @@ pub struct DiagnoseArgs {
     /// Another record (same columns) to simulate the fitted models on: cross-record validation. Repeatable.
     #[arg(long)]
     pub validate_on: Vec<PathBuf>,
-    /// Share of the record used for fitting; the rest is held out (0.3..0.95).
+    /// Share of the record used for fitting; the rest is held out (between 0.3 and 0.95).
     #[arg(long, default_value_t = 0.7)]
     pub fit_fraction: f64,
     /// Seed of the fit's perturbed restarts (the result is deterministic for a seed).

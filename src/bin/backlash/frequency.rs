@@ -19,7 +19,7 @@ use backlash::identify::frequency::experiment::{
 use backlash::identify::frequency::{EstimatorPath, FrequencyError, FrequencyEstimate, SineRecord};
 use backlash::io::{RowReader, Table, write_atomic};
 use backlash::plant::poly::poly_eval;
-use backlash::report::plot::{Panel, Series, grid_plot, line_plot};
+use backlash::report::plot::{Axes, Panel, Series, grid_plot, line_plot};
 
 /// What a frequency estimate means (printed with every result).
 const CONVENTION: &str = "phase in [0, pi): the model (G, F) if -arg G(jw) mod 2pi is in [0, pi), else its dual \
@@ -491,8 +491,7 @@ fn bode_plots(
         "omega (rad/s)",
         "gain |G(jw)| / K",
         &mag,
-        true,
-        true,
+        Axes::LOG_LOG,
     )?;
     let ph_path = dir.join("bode_phase.png");
     line_plot(
@@ -501,8 +500,7 @@ fn bode_plots(
         "omega (rad/s)",
         "phase lag -arg G(jw) (deg)",
         &ph,
-        true,
-        false,
+        Axes::LOG_X,
     )?;
     Ok(vec![
         mag_path.display().to_string(),
@@ -593,8 +591,7 @@ fn steps_plot(dir: &Path, t: &[f64], u: &[f64], a: &SteppedAnalysis) -> Result<S
         "time (s)",
         "u",
         &series,
-        false,
-        false,
+        Axes::LINEAR,
     )?;
     Ok(path.display().to_string())
 }

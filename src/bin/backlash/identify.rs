@@ -3,7 +3,7 @@
 use anyhow::{Context, Result};
 use backlash::identify::mrgia::{Mrgia, MrgiaConfig, StepResult};
 use backlash::io::{AtomicFile, ReadAhead, RowReader};
-use backlash::report::plot::{Series, line_plot};
+use backlash::report::plot::{Axes, Series, line_plot};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 use std::io::Write;
@@ -16,16 +16,16 @@ const PROGRESS_MIN_BYTES: u64 = 5_000_000;
 pub struct MrgiaArgs {
     /// Data file: CSV with columns time,u,y (any order; other columns ignored).
     pub file: PathBuf,
-    /// Number of a coefficients (0..4).
+    /// Number of a coefficients (0 to 4).
     #[arg(long)]
     pub na: usize,
-    /// Highest b index (0..4): b0..b_nb are estimated.
+    /// Highest b index (0 to 4): b0..b_nb are estimated.
     #[arg(long)]
     pub nb: usize,
-    /// Input delay in samples (>= 1).
+    /// Input delay in samples (1 to 64).
     #[arg(long)]
     pub delay: usize,
-    /// Use the project's recommended on-line setting instead of the paper's (see the README).
+    /// Use the project's recommended on-line setting instead of the paper's (see docs/INTERFACE.md).
     #[arg(long)]
     pub recommended: bool,
     /// P(0) = P0 I (paper: 1e6).
@@ -253,8 +253,7 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
             "sample k",
             "estimate",
             &series,
-            false,
-            false,
+            Axes::LINEAR,
         )?;
     }
 

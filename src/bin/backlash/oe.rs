@@ -11,7 +11,7 @@ use backlash::identify::oe::{
 };
 use backlash::io::{Table, write_atomic};
 use backlash::plant::{ArxParams, BacklashParams, MAX_DELAY, PlantParams};
-use backlash::report::plot::{Series, line_plot};
+use backlash::report::plot::{Axes, Series, line_plot};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
 use std::io::Write;
@@ -172,8 +172,7 @@ pub fn run_oe(args: &OeArgs) -> Result<()> {
                     Series::line("OE model", pts(&w)).color(0),
                     Series::dashed(&format!("start ({})", f.start_method), pts(&w0)).color(1),
                 ],
-                false,
-                false,
+                Axes::LINEAR,
             )?;
         }
     }
@@ -359,7 +358,7 @@ pub fn run_crb(args: &CrbArgs) -> Result<()> {
         (Some(s), _) => s,
         (None, Some(r)) => {
             if !(r.is_finite() && r > 0.0) {
-                bail!("--snr {r} must be a finite number > 0");
+                bail!("--snr {r} must be a positive finite number");
             }
             let w = simulate(&estimate_of(&truth), truth.arx.delay, &u)?;
             let n = w.len().max(1) as f64;
@@ -470,7 +469,7 @@ pub fn run_study(args: &StudyArgs) -> Result<()> {
         return Ok(());
     }
     if args.seeds == 0 || args.ns.is_empty() || args.ns.iter().any(|&n| n < 10) {
-        bail!("need --seeds >= 1 and every N in --ns >= 10");
+        bail!("--seeds must be at least 1 and every N in --ns at least 10");
     }
     let snrs = match (&args.snrs, args.snr) {
         (Some(v), _) => v.clone(),
@@ -478,7 +477,7 @@ pub fn run_study(args: &StudyArgs) -> Result<()> {
         (None, None) => vec![43.0],
     };
     if let Some(r) = snrs.iter().find(|r| !(r.is_finite() && **r > 0.0)) {
-        bail!("--snr {r} must be a finite number > 0");
+        bail!("--snr {r} must be a positive finite number");
     }
     let cfg = GridConfig {
         seeds: args.seeds,
@@ -493,7 +492,7 @@ pub fn run_study(args: &StudyArgs) -> Result<()> {
         let mut b = rayon::ThreadPoolBuilder::new();
         if let Some(t) = args.threads {
             if t == 0 {
-                bail!("--threads must be >= 1");
+                bail!("--threads must be at least 1");
             }
             b = b.num_threads(t);
         }

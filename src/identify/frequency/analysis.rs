@@ -37,7 +37,7 @@ use super::{
 };
 
 /// Agreement of two phase estimates of the same data (rad, modulo `pi`), about 3 degrees: well above the
-/// scatter of the estimates on the simulated records of the README (below 1e-2 rad) and well below what
+/// scatter of the estimates on the simulated records of docs/RESULTS.md (below 1e-2 rad) and well below what
 /// a model that does not fit gives from one half of a record to the other.
 pub const PHASE_AGREEMENT: f64 = 0.05;
 /// Relative agreement of two gain estimates of the same data at the same degree.
@@ -209,7 +209,7 @@ fn check_options(opts: &AnalysisOptions) -> Result<(), FrequencyError> {
         if let Some(v) = v
             && !(v.is_finite() && v > 0.0)
         {
-            return bad(name, v, "must be a finite number > 0");
+            return bad(name, v, "must be a positive finite number");
         }
     }
     if let Some(n) = opts.degree

@@ -155,7 +155,11 @@ impl ExperimentPlant {
             })
         };
         if !(self.amplitude.is_finite() && self.amplitude > 0.0) {
-            return bad("amplitude", self.amplitude, "must be a finite number > 0");
+            return bad(
+                "amplitude",
+                self.amplitude,
+                "must be a positive finite number",
+            );
         }
         if !(self.noise_std.is_finite() && self.noise_std >= 0.0) {
             return bad("noise_std", self.noise_std, "must be a finite number >= 0");
@@ -321,7 +325,7 @@ fn check_omegas(omegas: &[f64]) -> Result<(), ExperimentError> {
         Some(w) => Err(ExperimentError::Setting {
             name: "omega",
             value: *w,
-            reason: "every frequency must be a finite number > 0 (rad/s)",
+            reason: "every frequency must be a positive finite number (rad/s)",
         }),
         None if omegas.is_empty() => Err(ExperimentError::Setting {
             name: "omegas",

@@ -35,8 +35,8 @@
 //! 6. Recovery, eqs. (28), (35)-(37): `|G| = (sum_i |alpha_i|^(n/i))^(1/n) / U`,
 //!    `a_i = alpha_i / S^(i/n)`, `d_i = delta_i / S^(i/n)` with `S = sum_i |alpha_i|^(n/i)` for **both**
 //!    borders. Eq. (37) of the paper divides the `delta_i` by the sum over the `|delta_i|`; eqs. (33a)-(34a)
-//!    show that the scale is `U |G(j omega)|`, i.e. the same sum over the `alpha_i` (the seeds README records
-//!    this typo), which is what is used.
+//!    show that the scale is `U |G(j omega)|`, i.e. the same sum over the `alpha_i` (a known typo of the
+//!    paper), which is what is used.
 //!
 //! # Convention: model or dual, and normalisation
 //!

@@ -1,4 +1,4 @@
-//! The numerical example of paper 000, section 4, as a reusable study (for tests, the CLI and the README).
+//! The numerical example of paper 000, section 4, as a reusable study (for tests, the CLI and docs/RESULTS.md).
 
 use super::{Estimate, Mrgia, MrgiaConfig};
 use crate::plant::{Plant, PlantParams};

@@ -192,7 +192,7 @@ pub enum StudyError {
     UnknownMethod(String),
     #[error("the grid is empty: {0}")]
     Empty(&'static str),
-    #[error("record length N = {0} is too short: every N must be >= 10")]
+    #[error("record length N = {0} is too short: every N must be at least 10")]
     ShortRecord(usize),
     #[error("SNR {0} must be a finite number > 0")]
     Snr(f64),
