@@ -1,5 +1,6 @@
 //! `backlash diagnose`: fit the declared model, test its residual, and name the catalogue effect it lacks.
 
+use crate::structure::StructureArgs;
 use anyhow::{Context, Result, bail};
 use backlash::diagnose::engine::{DiagnoseConfig, diagnose};
 use backlash::diagnose::output::DiagnosisOut;
@@ -14,19 +15,8 @@ use std::path::{Path, PathBuf};
 pub struct DiagnoseArgs {
     /// Data file: CSV with columns time,u,y (any order; other columns ignored; names configurable).
     pub file: PathBuf,
-    /// Number of a coefficients of the declared model (0 to 4). Without --na, --nb and --delay the
-    /// structure is chosen from the fit part of the data.
-    #[arg(long, requires_all = ["nb", "delay"])]
-    pub na: Option<usize>,
-    /// Highest b index of the declared model (0 to 4).
-    #[arg(long, requires_all = ["na", "delay"])]
-    pub nb: Option<usize>,
-    /// Input delay of the declared model, in samples after decimation (1 to 64).
-    #[arg(long, requires_all = ["na", "nb"])]
-    pub delay: Option<usize>,
-    /// The longest delay the structure selection tries, in samples after decimation (1 to 64).
-    #[arg(long, default_value_t = 10)]
-    pub max_delay: usize,
+    #[command(flatten)]
+    pub structure: StructureArgs,
     /// Wall-clock budget of the diagnosis in seconds; candidates not fitted when it is spent are listed as
     /// not tried.
     #[arg(long, default_value_t = 300.0)]
@@ -124,11 +114,11 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
     }
     let [t, u, y] = load(&args.file, args)?;
     let ts = sample_period(&t);
-    let mut cfg = match (args.na, args.nb, args.delay) {
-        (Some(na), Some(nb), Some(delay)) => DiagnoseConfig::new(na, nb, delay),
-        _ => DiagnoseConfig::auto(),
+    let mut cfg = match args.structure.declared() {
+        Some(s) => DiagnoseConfig::new(s.na, s.nb, s.delay),
+        None => DiagnoseConfig::auto(),
     };
-    cfg.max_delay = args.max_delay;
+    cfg.max_delay = args.structure.max_delay;
     cfg.fit_fraction = args.fit_fraction;
     cfg.seed = args.seed;
     cfg.max_effects = args.max_effects;

@@ -7,6 +7,7 @@ mod frequency;
 mod identify;
 mod oe;
 mod simulate;
+mod structure;
 
 use clap::{Parser, Subcommand};
 

@@ -2,15 +2,16 @@
 //! (Cramer-Rao bound of an input record: plan an experiment) and `backlash study` (Monte Carlo study of the
 //! paper's example).
 
+use crate::structure::StructureArgs;
 use anyhow::{Context, Result, bail};
-use backlash::diagnose::structure::{Structure, StructureChoice, select_for_record};
+use backlash::diagnose::structure::{StructureChoice, select_for_record};
 use backlash::identify::mrgia::{Estimate, paper_input};
 use backlash::identify::oe::{
     self, GridConfig, OeConfig, OeFit, Uncertainty, crb, estimate_of, fit, param_names, plant_of,
     simulate, theta_of,
 };
 use backlash::io::{Table, write_atomic};
-use backlash::plant::{ArxParams, BacklashParams, MAX_DELAY, PlantParams};
+use backlash::plant::{ArxParams, BacklashParams, PlantParams};
 use backlash::report::plot::{Axes, Series, line_plot};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
@@ -22,19 +23,8 @@ use std::time::Instant;
 pub struct OeArgs {
     /// Data file: CSV with columns time,u,y (any order; other columns ignored).
     pub file: PathBuf,
-    /// Number of a coefficients (0 to 4). Without --na, --nb and --delay the structure is chosen from the
-    /// data, as `diagnose` does.
-    #[arg(long, requires_all = ["nb", "delay"])]
-    pub na: Option<usize>,
-    /// Highest b index (0 to 4): b0..b_nb are estimated.
-    #[arg(long, requires_all = ["na", "delay"])]
-    pub nb: Option<usize>,
-    /// Input delay in samples (1 to 64).
-    #[arg(long, requires_all = ["na", "nb"])]
-    pub delay: Option<usize>,
-    /// The longest delay the structure selection tries (1 to 64).
-    #[arg(long, default_value_t = 10)]
-    pub max_delay: usize,
+    #[command(flatten)]
+    pub structure: StructureArgs,
     /// Start only from MRGIA's recommended estimate (default: also from the paper setting's estimate and
     /// from the recommended one with halved gaps, keeping the lowest cost).
     #[arg(long)]
@@ -104,21 +94,16 @@ fn print_plan(unc: &Uncertainty, target: f64) -> Result<()> {
 }
 
 pub fn run_oe(args: &OeArgs) -> Result<()> {
-    if !(1..=MAX_DELAY).contains(&args.max_delay) {
-        bail!(
-            "--max-delay {} must be between 1 and {MAX_DELAY}",
-            args.max_delay
-        );
-    }
+    let max_delay = args.structure.max_delay()?;
     let table = Table::read(&args.file, &["time", "u", "y"])?;
     let (t, u, y) = (
         table.column("time").unwrap(),
         table.column("u").unwrap(),
         table.column("y").unwrap(),
     );
-    let structure = match (args.na, args.nb, args.delay) {
-        (Some(na), Some(nb), Some(delay)) => StructureChoice::declared(Structure { na, nb, delay }),
-        _ => select_for_record(u, y, args.max_delay),
+    let structure = match args.structure.declared() {
+        Some(s) => StructureChoice::declared(s),
+        None => select_for_record(u, y, max_delay),
     };
     let s = structure.chosen;
     let mut cfg = OeConfig::new(s.na, s.nb, s.delay);
