@@ -362,6 +362,26 @@ mod tests {
         )
     }
 
+    /// Write the report of `d` on the record `s` (time 0.01 per sample) into a fresh temporary folder named
+    /// after `tag`; returns the folder and the Markdown text.
+    fn report_of(s: &Scenario, d: &Diagnosis, tag: &str) -> (std::path::PathBuf, String) {
+        let dir = std::env::temp_dir().join(format!("backlash-{tag}-{}", std::process::id()));
+        let t: Vec<f64> = (0..s.u.len()).map(|k| k as f64 * 0.01).collect();
+        let input = crate::diagnose::report::ReportInput {
+            columns: ["time", "u", "y"],
+            file: "bench",
+            t: &t,
+            u: &s.u,
+            y: &s.y,
+            decimate: 1,
+            command: None,
+            validations: &[],
+        };
+        let md = crate::diagnose::report::write_report(&dir, d, &input).unwrap();
+        let text = std::fs::read_to_string(&md).unwrap();
+        (dir, text)
+    }
+
     /// Seeds of the held-out check set: never used while the diagnosis was developed (development used
     /// seeds 0..60 for every effect and 0..300 for clean records), so the magnitudes drawn from them are
     /// new too.
@@ -533,20 +553,7 @@ mod tests {
                 assert!(c[key].is_number(), "{key} in {c}");
             }
         }
-        let dir = std::env::temp_dir().join(format!("backlash-diag-{}", std::process::id()));
-        let t: Vec<f64> = (0..s.u.len()).map(|k| k as f64 * 0.01).collect();
-        let input = crate::diagnose::report::ReportInput {
-            columns: ["time", "u", "y"],
-            file: "bench",
-            t: &t,
-            u: &s.u,
-            y: &s.y,
-            decimate: 1,
-            command: None,
-            validations: &[],
-        };
-        let md = crate::diagnose::report::write_report(&dir, &d, &input).unwrap();
-        let text = std::fs::read_to_string(&md).unwrap();
+        let (dir, text) = report_of(&s, &d, "diag");
         assert!(text.contains("**Effect: `saturation`**"));
         for f in [
             "heldout.png",
@@ -600,20 +607,7 @@ mod tests {
         assert!(fin.extension(EffectId::GapDrift).is_some());
         assert!(fin.extension(EffectId::Quantization).is_some());
 
-        let dir = std::env::temp_dir().join(format!("backlash-loop-{}", std::process::id()));
-        let t: Vec<f64> = (0..s.u.len()).map(|k| k as f64).collect();
-        let input = crate::diagnose::report::ReportInput {
-            columns: ["time", "u", "y"],
-            file: "bench",
-            t: &t,
-            u: &s.u,
-            y: &s.y,
-            decimate: 1,
-            command: None,
-            validations: &[],
-        };
-        let md = crate::diagnose::report::write_report(&dir, &d, &input).unwrap();
-        let text = std::fs::read_to_string(&md).unwrap();
+        let (dir, text) = report_of(&s, &d, "loop");
         assert!(text.contains("## The loop"), "{text}");
         assert!(text.contains(&format!("| 2 | `{}` |", named[1])), "{text}");
         assert!(dir.join("steps.png").metadata().unwrap().len() > 1000);
