@@ -209,12 +209,9 @@ pub unsafe extern "C" fn fmi2Instantiate(
             Ok(g) => g,
             Err(e) => return refuse(&e),
         };
-        let Some(slave) = crate::fmus::instantiate(guid) else {
-            return refuse(&format!(
-                "fmuGUID {guid} matches neither {} nor {}: the modelDescription.xml and the binary do not belong together",
-                crate::fmus::backlash_plant::GUID,
-                crate::fmus::mrgia_estimator::GUID
-            ));
+        let slave = match crate::fmus::instantiate(guid) {
+            Ok(s) => s,
+            Err(e) => return refuse(&e),
         };
         let inst = Box::new(Instance::new(
             name,

@@ -12,13 +12,18 @@ pub mod plant;
 
 use crate::fmi2::instance::{Adapter, Slave};
 
-/// The model whose GUID the importer passed to fmi2Instantiate (one binary serves both FMUs).
-pub fn instantiate(guid: &str) -> Option<Box<dyn Slave>> {
+/// The model whose GUID the importer passed to fmi2Instantiate (one binary serves both FMUs), or why there
+/// is none (the message names the GUIDs this binary knows).
+pub fn instantiate(guid: &str) -> Result<Box<dyn Slave>, String> {
     if guid == backlash_plant::GUID {
-        Some(Box::new(Adapter::<plant::PlantFmu>::new()))
+        Ok(Box::new(Adapter::<plant::PlantFmu>::new()))
     } else if guid == mrgia_estimator::GUID {
-        Some(Box::new(Adapter::<estimator::EstimatorFmu>::new()))
+        Ok(Box::new(Adapter::<estimator::EstimatorFmu>::new()))
     } else {
-        None
+        Err(format!(
+            "fmuGUID {guid} matches neither {} nor {}: the modelDescription.xml and the binary do not belong together",
+            backlash_plant::GUID,
+            mrgia_estimator::GUID
+        ))
     }
 }
