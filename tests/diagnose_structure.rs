@@ -7,7 +7,7 @@ use std::process::{Command, Stdio};
 
 use backlash::diagnose::engine::{DiagnoseConfig, diagnose};
 use backlash::identify::mrgia::paper_input;
-use backlash::plant::{ArxParams, Plant, PlantParams};
+use backlash::plant::{ArxParams, BacklashParams, Plant, PlantParams};
 use backlash::stats::std_dev;
 
 /// A record of `params` driven by the paper's input, with white noise at a signal-to-noise ratio of 40
@@ -117,4 +117,87 @@ fn identify_oe_without_orders_reports_the_chosen_ones() {
     assert_eq!(v["a"].as_array().map(Vec::len), Some(na), "{v}");
     assert_eq!(v["b"].as_array().map(Vec::len), Some(nb + 1), "{v}");
     assert_eq!(v["delay"], 1, "the paper plant's delay: {v}");
+}
+
+#[test]
+fn a_record_that_starts_at_an_operating_point_is_simulated_from_rest_there() {
+    // The paper plant (equal slopes, so that its play is the same at every level) held at input 50 long
+    // enough to settle, then driven by the paper's input around it: the record starts at rest at its first
+    // input, far from 0 (like positions in encoder counts).
+    let params = PlantParams {
+        backlash: BacklashParams {
+            m2: 1.0,
+            ..BacklashParams::PAPER
+        },
+        ..PlantParams::PAPER
+    };
+    let (n, settle, level) = (3000, 400, 50.0);
+    let (u0, y0) = record(params, n, 7);
+    let mut u = vec![level; settle];
+    u.extend(u0.iter().map(|v| v + level));
+    let y_all: Vec<f64> = Plant::simulate(
+        PlantParams {
+            noise_std: std_dev(&y0) / 40.0,
+            noise_seed: 7 ^ 0x5EED,
+            ..params
+        },
+        &u,
+    )
+    .expect("valid plant")
+    .iter()
+    .map(|o| o.y)
+    .collect();
+    let (u, y) = (u[settle..].to_vec(), y_all[settle..].to_vec());
+
+    let at_level = diagnose(&u, &y, &DiagnoseConfig::auto()).expect("diagnosis runs");
+    assert_eq!(
+        at_level.initial.chosen_by, "first-input",
+        "{}",
+        at_level.initial.reason
+    );
+    assert_eq!(at_level.initial.input, u[0]);
+    assert_eq!(
+        at_level.structure.chosen.delay, 1,
+        "{}",
+        at_level.structure.reason
+    );
+    // As good as the same plant's record from rest at 0 (noise at the same level).
+    let at_zero = diagnose(&u0, &y0, &DiagnoseConfig::auto()).expect("diagnosis runs");
+    assert_eq!(
+        at_zero.initial.chosen_by, "zero",
+        "{}",
+        at_zero.initial.reason
+    );
+    let (a, z) = (at_level.base_heldout_rmse, at_zero.base_heldout_rmse);
+    assert!(
+        a <= 1.2 * z,
+        "from the operating point held-out {a:.4e}, from rest at 0 {z:.4e}"
+    );
+    // The declared structure too.
+    let declared = diagnose(&u, &y, &DiagnoseConfig::new(2, 0, 1)).expect("diagnosis runs");
+    assert_eq!(declared.initial.chosen_by, "first-input");
+    assert!(declared.base_heldout_rmse <= 1.2 * z);
+}
+
+#[test]
+fn the_diagnosis_does_not_depend_on_the_records_units() {
+    // The same record in units a million times smaller and larger: the same structure, the same effects,
+    // the same held-out errors in the record's units.
+    let (u, y) = record(PlantParams::PAPER, 3000, 11);
+    let base = diagnose(&u, &y, &DiagnoseConfig::auto()).expect("diagnosis runs");
+    let ids = |d: &backlash::diagnose::engine::Diagnosis| -> Vec<&'static str> {
+        d.steps().iter().map(|c| c.id.as_str()).collect()
+    };
+    for scale in [1e-6, 1e6] {
+        let su: Vec<f64> = u.iter().map(|v| v * scale).collect();
+        let sy: Vec<f64> = y.iter().map(|v| v * scale).collect();
+        let d = diagnose(&su, &sy, &DiagnoseConfig::auto()).expect("diagnosis runs");
+        assert_eq!(d.structure.chosen, base.structure.chosen, "scale {scale}");
+        assert_eq!(ids(&d), ids(&base), "scale {scale}");
+        let (a, b) = (d.base_heldout_rmse / scale, base.base_heldout_rmse);
+        assert!(
+            (a - b).abs() <= 0.02 * b,
+            "scale {scale}: held-out {a:.6e} against {b:.6e} in the record's units"
+        );
+    }
 }

@@ -84,7 +84,7 @@ use super::problem::{Problem, fit_linear, fit_plain, sim_limit};
 use super::residual::{self, Verdict};
 use super::starts::{self, StartContext};
 use super::statistics::{INPUT_LINE_RATIO, diebold_mariano, input_line_ratio};
-use super::structure::{self, Structure, StructureChoice};
+use super::structure::{self, InitialState, Structure, StructureChoice};
 use crate::plant::{MAX_DELAY, MAX_ORDER};
 use crate::stats::{rms, rms_diff, std_dev};
 
@@ -268,6 +268,8 @@ pub struct Diagnosis {
     pub n_fit: usize,
     /// The structure used and how it was chosen.
     pub structure: StructureChoice,
+    /// The state the record starts from (the input level the model rests at) and why.
+    pub initial: InitialState,
     pub linear: LinearFit,
     /// The plain backlash model fitted on the fit part.
     pub base: EffectModel,
@@ -337,12 +339,14 @@ impl Diagnosis {
     }
 
     /// Simulate the plain model and the chosen extension (both as fitted here) over another record, from
-    /// zero initial state: cross-record validation (free-run errors both).
+    /// the same kind of initial state as this record (rest at 0, or at that record's first input):
+    /// cross-record validation (free-run errors both).
     pub fn cross_validate(&self, u: &[f64], y: &[f64]) -> Option<CrossValidation> {
         let n = u.len().min(y.len());
         let limit = sim_limit(u, y);
-        let before = self.base.simulate(u, n, limit)?;
-        let after = self.final_model().simulate(u, n, limit)?.y;
+        let rest = self.initial.rest_for(u.first().copied().unwrap_or(0.0));
+        let before = self.base.simulate(u, rest, n, limit)?;
+        let after = self.final_model().simulate(u, rest, n, limit)?.y;
         Some(CrossValidation {
             samples: n,
             y_std: std_dev(&y[..n]),
@@ -394,6 +398,14 @@ pub fn diagnose(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<Diagnosis,
     };
     let n_fit = ((n as f64 * cfg.fit_fraction).round() as usize).clamp(1, n - 1);
     let mut problem = Problem::new(u, y, n_fit, lm);
+    let initial = structure::initial_state(
+        &problem,
+        &match cfg.structure {
+            Some(s) => vec![s],
+            None => structure::grid(cfg.max_delay, n_fit, n),
+        },
+    );
+    problem.rest = initial.rest_for(u[0]);
     let choice = match cfg.structure {
         Some(s) => StructureChoice::declared(s),
         None => structure::select(&problem, cfg.max_delay, n),
@@ -406,7 +418,15 @@ pub fn diagnose(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<Diagnosis,
         rounds += 1;
         let base = fit_plain(&problem, s, cfg.restarts, cfg.seed, &linear, &extra_starts)
             .ok_or(DiagnoseError::NoFit)?;
-        let mut d = diagnose_from(&mut problem, cfg, base.0, &linear, choice.clone(), rounds)?;
+        let mut d = diagnose_from(
+            &mut problem,
+            cfg,
+            base.0,
+            &linear,
+            choice.clone(),
+            &initial,
+            rounds,
+        )?;
         // A winner whose own base part fits the plain model better means the plain fit stopped in a local
         // minimum: refit from there (at most twice) so that "before" is honest.
         if rounds < 3
@@ -548,7 +568,7 @@ fn check_record(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<(), Diagno
 fn linear_fit(p: &Problem, linear: &(BaseModel, f64)) -> LinearFit {
     let n = p.u.len();
     let output = EffectModel::plain(linear.0.clone())
-        .simulate(p.u, n, p.limit)
+        .simulate(p.u, p.rest, n, p.limit)
         .map_or_else(|| vec![f64::NAN; n], |s| s.y);
     LinearFit {
         model: linear.0.clone(),
@@ -613,11 +633,14 @@ fn diagnose_from(
     base: EffectModel,
     linear: &(BaseModel, f64),
     structure: StructureChoice,
+    initial: &InitialState,
     rounds: usize,
 ) -> Result<Diagnosis, DiagnoseError> {
     let (u, y, n_fit) = (p.u, p.y, p.n_fit);
     let n = u.len();
-    let base_sim = base.simulate(u, n, p.limit).ok_or(DiagnoseError::NoFit)?;
+    let base_sim = base
+        .simulate(u, p.rest, n, p.limit)
+        .ok_or(DiagnoseError::NoFit)?;
     p.x_scale = std_dev(&base_sim.x[..n_fit]).max(1e-12);
     let e: Vec<f64> = y.iter().zip(&base_sim.y).map(|(a, b)| a - b).collect();
     let base_cost: f64 = e[..n_fit].iter().map(|v| v * v).sum();
@@ -645,6 +668,7 @@ fn diagnose_from(
         n,
         n_fit,
         structure,
+        initial: initial.clone(),
         linear,
         base_k,
         base_fit_rmse: (base_cost / n_fit as f64).sqrt(),
@@ -867,7 +891,7 @@ impl Context<'_, '_> {
         let p = self.p;
         let n = p.u.len();
         let k = model.n_estimated();
-        let sim = model.simulate(p.u, n, p.limit)?;
+        let sim = model.simulate(p.u, p.rest, n, p.limit)?;
         let sim_held: Vec<f64> = p.y[p.n_fit..]
             .iter()
             .zip(&sim.y[p.n_fit..])

@@ -138,6 +138,14 @@ pub fn levenberg_marquardt<R: Residuals + ?Sized>(
         });
     }
     let mut jac = vec![0.0; n * q];
+    // Each free parameter's unit: its typical magnitude (1 where none is given).
+    let unit: Vec<f64> = free
+        .iter()
+        .map(|&j| {
+            let t = typ[j].abs();
+            if t > 0.0 && t.is_finite() { t } else { 1.0 }
+        })
+        .collect();
     let mut rt = Vec::with_capacity(n);
     let mut trial = theta.clone();
     let out_of_time = || opts.deadline.is_some_and(|d| Instant::now() >= d);
@@ -145,6 +153,12 @@ pub fn levenberg_marquardt<R: Residuals + ?Sized>(
         iterations += 1;
         evaluations += jacobian(f, &theta, &r, typ, &free, opts.fd_rel, &mut jac);
         let (h, g) = normal_equations(&jac, &r, q);
+        // In units of the typical magnitudes, so that the damping's floor and the factorisation do not depend
+        // on the data's units (a record in millimetres and the same in metres take the same steps).
+        let (h, g) = (
+            DMatrix::from_fn(q, q, |a, b| h[(a, b)] * unit[a] * unit[b]),
+            DVector::from_fn(q, |a, _| g[a] * unit[a]),
+        );
         // Statistically negligible step: stop (the Gauss-Newton decrement in units of the noise variance).
         if opts.stat_tol > 0.0 && n > q {
             let s2 = cost / (n - q) as f64;
@@ -168,7 +182,7 @@ pub fn levenberg_marquardt<R: Residuals + ?Sized>(
             if let Some(delta) = step {
                 trial.copy_from_slice(&theta);
                 for (c, &j) in free.iter().enumerate() {
-                    trial[j] += delta[c];
+                    trial[j] += delta[c] * unit[c];
                 }
                 evaluations += 1;
                 if let Some(c_new) = evaluate(f, &trial, &mut rt)

@@ -25,7 +25,46 @@ pub struct BaseModel {
     pub c2: f64,
 }
 
+/// The input level before the record's first sample, at which the model is at rest: the linear block's past
+/// inputs equal it and its past outputs equal their steady state. `Rest::ZERO` is the plant FMU's
+/// convention (everything 0 before the first sample); a record that starts at an operating point far from
+/// 0 (positions in encoder counts, temperatures) is simulated from rest at its first input instead, so that
+/// a fit does not spend its parameters on a start-up transient the plant never had.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct Rest(pub f64);
+
+impl Rest {
+    pub const ZERO: Rest = Rest(0.0);
+}
+
 impl BaseModel {
+    /// Steady-state gain of the linear block, `sum b / (1 + sum a)` (0 when `1 + sum a` is 0: such a block
+    /// is not stable and is never simulated).
+    pub fn static_gain(&self) -> f64 {
+        let den = 1.0 + self.a.iter().sum::<f64>();
+        if den == 0.0 {
+            0.0
+        } else {
+            self.b.iter().sum::<f64>() / den
+        }
+    }
+
+    /// The backlash memory (with `contact`, the slider's position) before the first sample when the linear
+    /// block rests at `x_rest`: 0 when that is 0 (the plant's convention); otherwise 0 moved into the band
+    /// the backlash holds at `x_rest` (`m1 (x - c1) <= w <= m2 (x + c2)`, the upper border if the band is
+    /// inverted), and the contact slider where the spring is unloaded (`x_rest`).
+    fn rest_memory(&self, x_rest: f64, contact: bool) -> f64 {
+        if x_rest == 0.0 {
+            return 0.0;
+        }
+        if contact {
+            return x_rest;
+        }
+        let lo = self.m1 * (x_rest - self.c1);
+        let hi = self.m2 * (x_rest + self.c2);
+        if lo <= hi { 0.0f64.clamp(lo, hi) } else { lo }
+    }
+
     /// Zero coefficients, unit slopes, zero gaps.
     pub fn zero(na: usize, nb: usize, delay: usize) -> Self {
         Self {
@@ -505,15 +544,31 @@ impl EffectModel {
         })
     }
 
-    /// Simulate samples `0..n` of the model output into `sim` (reusing its buffers), as a fit sees it.
+    /// Simulate samples `0..n` of the model output into `sim` (reusing its buffers), as a fit sees it, from
+    /// rest at the input level `rest` (see [`Rest`]).
     /// Returns `false` if the model is not valid: m2 <= 0 or non-finite parameters, an unstable linear block,
     /// `|x| > limit`, an empty friction slip range, or a backlash that visits an inverted memory zone on
     /// these samples (see the chatter check in the loop).
-    pub fn simulate_into(&self, u: &[f64], n: usize, limit: f64, sim: &mut Simulation) -> bool {
-        self.run(u, n, limit, true, sim)
+    pub fn simulate_into(
+        &self,
+        u: &[f64],
+        rest: Rest,
+        n: usize,
+        limit: f64,
+        sim: &mut Simulation,
+    ) -> bool {
+        self.run(u, rest, n, limit, true, sim)
     }
 
-    fn run(&self, u: &[f64], n: usize, limit: f64, strict: bool, sim: &mut Simulation) -> bool {
+    fn run(
+        &self,
+        u: &[f64],
+        rest: Rest,
+        n: usize,
+        limit: f64,
+        strict: bool,
+        sim: &mut Simulation,
+    ) -> bool {
         let b = &self.base;
         if !(b.m2 > 0.0 && b.m2.is_finite() && b.c1.is_finite() && b.c2.is_finite()) {
             return false;
@@ -554,19 +609,17 @@ impl EffectModel {
         sim.w.clear();
         sim.y.clear();
         sim.mode.clear();
-        let (mut w_prev, mut f_prev) = (0.0, 0.0);
+        let u_rest = rest.0;
+        let x_rest = b.static_gain() * u_rest;
+        let (mut w_prev, mut f_prev) = (b.rest_memory(x_rest, contact), 0.0);
         let d = b.delay;
         for k in 0..n {
             let mut x = 0.0;
             for (i, ai) in b.a.iter().enumerate() {
-                if k > i {
-                    x -= ai * sim.x[k - 1 - i];
-                }
+                x -= ai * if k > i { sim.x[k - 1 - i] } else { x_rest };
             }
             for (j, bj) in b.b.iter().enumerate() {
-                if k >= d + j {
-                    x += bj * u[k - d - j];
-                }
+                x += bj * if k >= d + j { u[k - d - j] } else { u_rest };
             }
             if x.is_nan() || x.abs() > limit {
                 return false;
@@ -615,9 +668,9 @@ impl EffectModel {
     /// Simulate a fitted model over a record (held-out part, another record): the same as
     /// [`EffectModel::simulate_into`] except that a visit to an inverted memory zone is simulated by the contract's
     /// rule rather than refused (a model fitted where its zone was valid must still give a prediction).
-    pub fn simulate(&self, u: &[f64], n: usize, limit: f64) -> Option<Simulation> {
+    pub fn simulate(&self, u: &[f64], rest: Rest, n: usize, limit: f64) -> Option<Simulation> {
         let mut s = Simulation::default();
-        self.run(u, n, limit, false, &mut s).then_some(s)
+        self.run(u, rest, n, limit, false, &mut s).then_some(s)
     }
 
     /// One-step-ahead prediction of y(k) from y up to k-1: the simulation plus, with a noise model,
@@ -734,7 +787,7 @@ mod tests {
         }
         assert!(models.len() > 40, "{}", models.len());
         for m in models {
-            let s = m.simulate(&u, u.len(), 1e9).unwrap();
+            let s = m.simulate(&u, Rest::ZERO, u.len(), 1e9).unwrap();
             let bench = simulate_with_effects(&p, &m.effects(), &u, 0).unwrap();
             let ext = &m.exts;
             for (k, o) in bench.iter().enumerate() {
@@ -780,7 +833,7 @@ mod tests {
         b.a = vec![-2.5, 0.0];
         assert!(
             EffectModel::plain(b)
-                .simulate(&input(500), 500, 1e6)
+                .simulate(&input(500), Rest::ZERO, 500, 1e6)
                 .is_none()
         );
         let m = EffectModel::plain(paper_base()).with(Extension::ColouredNoise { phi: vec![0.5] });

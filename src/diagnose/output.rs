@@ -6,7 +6,7 @@ use super::catalogue::EffectId;
 use super::decision::DECISION_RULE;
 use super::engine::{BacklashSupport, Candidate, Diagnosis, OneStep, TestResult};
 use super::model::{BaseModel, EffectModel, Extension};
-use super::structure::StructureChoice;
+use super::structure::{InitialState, StructureChoice};
 use crate::plant::effects::FrictionForm;
 
 /// An effect's parameters in the report's units.
@@ -311,6 +311,8 @@ pub struct DiagnosisOut<'a> {
     pub linear: Linear<'a>,
     pub backlash: &'a BacklashSupport,
     pub structure: &'a StructureChoice,
+    /// The input level the models rest at before the first sample, and why.
+    pub initial_state: &'a InitialState,
     pub na: usize,
     pub nb: usize,
     pub delay: usize,
@@ -435,6 +437,7 @@ impl<'a> DiagnosisOut<'a> {
             },
             backlash: &d.backlash,
             structure: &d.structure,
+            initial_state: &d.initial,
             na: d.structure.chosen.na,
             nb: d.structure.chosen.nb,
             delay: d.structure.chosen.delay,

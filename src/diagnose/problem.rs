@@ -16,7 +16,7 @@ use rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
 use super::fit::{LmOptions, covariance, levenberg_marquardt};
-use super::model::{BaseModel, EffectModel, Extension, Objective, Simulation, is_stable};
+use super::model::{BaseModel, EffectModel, Extension, Objective, Rest, Simulation, is_stable};
 use super::structure::Structure;
 use crate::identify::mrgia::{Mrgia, MrgiaConfig};
 use crate::stats::std_dev;
@@ -47,6 +47,8 @@ pub fn sim_limit(u: &[f64], y: &[f64]) -> f64 {
 pub(crate) struct Problem<'a> {
     pub u: &'a [f64],
     pub y: &'a [f64],
+    /// The input level at which every simulation starts at rest.
+    pub rest: Rest,
     pub n_fit: usize,
     /// Exploration uses samples `0..n_explore` (at most the fit part).
     pub n_explore: usize,
@@ -65,6 +67,7 @@ impl<'a> Problem<'a> {
         Self {
             u,
             y,
+            rest: Rest::ZERO,
             n_fit,
             n_explore: n_fit.min(EXPLORE_SAMPLES),
             limit: sim_limit(u, y),
@@ -118,7 +121,7 @@ impl<'a> Problem<'a> {
         scratch: &mut Simulation,
         out: &mut Vec<f64>,
     ) -> bool {
-        if !m.simulate_into(self.u, n, self.limit, scratch) {
+        if !m.simulate_into(self.u, self.rest, n, self.limit, scratch) {
             return false;
         }
         let y = &self.y[..n];
@@ -291,7 +294,7 @@ impl<'a> Problem<'a> {
     }
 
     /// Equation-error least squares of y on its past, the delayed inputs and a constant, on the fit part:
-    /// (a, b, constant). `None` when the record is too short for the structure or the equations are singular.
+    /// (a, b, the constant as an output offset: `y = x + offset` with x the linear block's output). `None` when the record is too short for the structure or the equations are singular.
     pub fn arx(&self, s: Structure) -> Option<(Vec<f64>, Vec<f64>, f64)> {
         use nalgebra::{DMatrix, DVector};
         let (na, nb, delay) = (s.na, s.nb, s.delay);
@@ -323,16 +326,26 @@ impl<'a> Problem<'a> {
                 h[(a, b)] = h[(b, a)];
             }
         }
-        let ridge = 1e-9 * (0..cols).map(|i| h[(i, i)]).fold(0.0, f64::max);
+        // A ridge relative to each column's own size (not the largest one's), so that the fit does not
+        // depend on the record's units; a column of zeros gets coefficient 0.
         for i in 0..cols {
-            h[(i, i)] += ridge.max(f64::MIN_POSITIVE);
+            let d = h[(i, i)];
+            h[(i, i)] = if d > 0.0 { d * (1.0 + 1e-9) } else { 1.0 };
         }
         let th = h.cholesky()?.solve(&g);
-        th.iter().all(|v| v.is_finite()).then(|| {
+        let a: Vec<f64> = th.iter().take(na).copied().collect();
+        // The equation's constant c enters the dynamics; at the output it is c / (1 + sum a).
+        let den = 1.0 + a.iter().sum::<f64>();
+        let offset = if den.abs() > 1e-6 {
+            th[cols - 1] / den
+        } else {
+            th[cols - 1]
+        };
+        (th.iter().all(|v| v.is_finite()) && offset.is_finite()).then(|| {
             (
-                th.iter().take(na).copied().collect(),
+                a,
                 th.iter().skip(na).take(nb + 1).copied().collect(),
-                th[cols - 1],
+                offset,
             )
         })
     }

@@ -707,14 +707,15 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
         "Model: pseudo-Wiener with backlash, {} ({}; m1 = 1 is the normalisation). Record: {} samples \
          after decimation by {}; the first {} (about {:.0}%) fit the models, the last {} are held out and only \
          used to judge them (the models are simulated over the whole record, so the held-out part starts from \
-         the right state). Every held-out error below is this free-run simulation error.\n",
+         the right state). Every held-out error below is this free-run simulation error. Initial state: {}.\n",
         st.chosen,
         st.chosen_by,
         d.n,
         input.decimate.max(1),
         d.n_fit,
         100.0 * d.n_fit as f64 / d.n as f64,
-        d.n - d.n_fit
+        d.n - d.n_fit,
+        d.initial.reason
     );
     if !st.candidates.is_empty() {
         let _ = writeln!(s, "## Structure\n");

@@ -21,7 +21,7 @@ use serde::Serialize;
 
 use super::engine::min_samples;
 use super::fit::LmOptions;
-use super::model::EffectModel;
+use super::model::{EffectModel, Rest};
 use super::problem::{Problem, fit_linear, fit_plain, linear_base, stabilize};
 use crate::plant::{MAX_DELAY, MAX_ORDER};
 use crate::stats::rms_diff;
@@ -109,7 +109,7 @@ impl StructureChoice {
 }
 
 /// The structures the record allows.
-fn grid(max_delay: usize, n_fit: usize, n_total: usize) -> Vec<Structure> {
+pub(crate) fn grid(max_delay: usize, n_fit: usize, n_total: usize) -> Vec<Structure> {
     let dmax = max_delay.min((n_fit / 10).max(1));
     let mut v = Vec::new();
     for delay in 1..=dmax {
@@ -125,6 +125,87 @@ fn grid(max_delay: usize, n_fit: usize, n_total: usize) -> Vec<Structure> {
     v
 }
 
+/// Prefer rest at the first input only when it lowers the equation-error models' best fit-part free-run
+/// error by more than this fraction (rest at 0 is the plant's convention and keeps the record's units).
+const REST_MARGIN: f64 = 0.1;
+
+/// The state the record starts from, and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct InitialState {
+    /// The input level at which the model rests before the first sample (0 or the first input).
+    pub input: f64,
+    /// `zero` (everything 0 before the first sample, the plant FMU's convention) or `first-input` (at rest
+    /// at the first sample's input, as a record that starts at an operating point).
+    pub chosen_by: &'static str,
+    pub reason: String,
+}
+
+impl InitialState {
+    /// The [`Rest`] of this state for a record whose first input is `u0` (another record of the same plant
+    /// starts from its own first input).
+    pub fn rest_for(&self, u0: f64) -> Rest {
+        if self.chosen_by == "first-input" {
+            Rest(u0)
+        } else {
+            Rest::ZERO
+        }
+    }
+}
+
+/// Choose the initial state on the fit part of `p`: every structure of `structures` gets its equation-error
+/// fit (with a constant) on the first [`SELECT_SAMPLES`] samples of the fit part, simulated free-run there
+/// from rest at 0 and from rest at the first input; the first input wins when the best error from there is
+/// more than [`REST_MARGIN`] below the best from 0. A record that starts at rest at 0 (a plant FMU's) keeps
+/// 0; one that starts at an operating point far from 0 (servo positions in encoder counts) would otherwise
+/// spend its fit on a start-up transient the plant never had.
+pub(crate) fn initial_state(p: &Problem, structures: &[Structure]) -> InitialState {
+    let u0 = p.u.first().copied().unwrap_or(0.0);
+    let zero = |reason: String| InitialState {
+        input: 0.0,
+        chosen_by: "zero",
+        reason,
+    };
+    if u0 == 0.0 {
+        return zero("the first input is 0: at rest at 0".into());
+    }
+    let n = p.n_fit.min(SELECT_SAMPLES);
+    let q = p.shortened(n);
+    let errors: Vec<[f64; 2]> = structures
+        .par_iter()
+        .filter_map(|&s| {
+            let (mut a, b, o) = q.arx(s)?;
+            stabilize(&mut a);
+            let m = EffectModel::plain(linear_base(s, &a, &b, o));
+            let err = |rest| {
+                m.simulate(q.u, rest, n, q.limit)
+                    .map(|sim| rms_diff(&q.y[..n], &sim.y[..n]))
+                    .filter(|v| v.is_finite())
+                    .unwrap_or(f64::INFINITY)
+            };
+            Some([err(Rest::ZERO), err(Rest(u0))])
+        })
+        .collect();
+    let best = |i: usize| errors.iter().map(|e| e[i]).fold(f64::INFINITY, f64::min);
+    let (from_zero, from_first) = (best(0), best(1));
+    if from_first < (1.0 - REST_MARGIN) * from_zero {
+        InitialState {
+            input: u0,
+            chosen_by: "first-input",
+            reason: format!(
+                "at rest at the first input ({}): the equation-error models' best fit-part free-run RMSE is \
+                 {from_first:.4e} from there against {from_zero:.4e} from rest at 0",
+                crate::report::number(u0)
+            ),
+        }
+    } else {
+        zero(format!(
+            "at rest at 0 (the plant's convention): the equation-error models' best fit-part free-run RMSE \
+             is {from_zero:.4e} from there and {from_first:.4e} from rest at the first input ({})",
+            crate::report::number(u0)
+        ))
+    }
+}
+
 /// Choose the structure on the fit part of `p` (see the module's documentation). `n_total` is the record's
 /// length (a structure must leave enough samples).
 pub(crate) fn select(p: &Problem, max_delay: usize, n_total: usize) -> StructureChoice {
@@ -132,7 +213,7 @@ pub(crate) fn select(p: &Problem, max_delay: usize, n_total: usize) -> Structure
     let n_est = (2 * n_w / 3).max(1);
     let est = p.shortened(n_est);
     let validation = |m: &EffectModel| {
-        m.simulate(p.u, n_w, p.limit)
+        m.simulate(p.u, p.rest, n_w, p.limit)
             .map(|s| rms_diff(&p.y[n_est..n_w], &s.y[n_est..n_w]))
             .filter(|v| v.is_finite())
     };

@@ -210,6 +210,11 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
         d.n_fit,
         d.n - d.n_fit
     );
+    println!(
+        "  structure ({}): {}",
+        d.structure.chosen_by, d.structure.reason
+    );
+    println!("  initial state: {}", d.initial.reason);
     let steps = d.steps();
     if steps.is_empty() {
         println!(
