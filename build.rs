@@ -2,11 +2,15 @@
 //!
 //! 1. Reads and checks modelDescription/<Model>.xml and generates `$OUT_DIR/model_descriptions.rs`
 //!    (identity, variable table, one enum variant per variable) for `src/fmus`.
-//! 2. In release builds, packages `target/fmu/<Model>.fmu` (see build/package.rs). Set `BACKLASH_FMU=never`
+//!    From the same file it writes the FMI 3.0 description (build/fmi3.rs): one hand-kept variable list.
+//! 2. In release builds, packages `target/fmu/<Model>.fmu` (FMI 2.0) and `target/fmu3/<Model>.fmu` (FMI 3.0)
+//!    around one shared library that exports both APIs (see build/package.rs). Set `BACKLASH_FMU=never`
 //!    to skip packaging, `BACKLASH_FMU=always` to package in debug builds too. On Linux the binary is the
 //!    portable GLIBC 2.17 build when cargo-zigbuild is installed (`BACKLASH_FMU_PORTABLE=never` skips it,
 //!    `=require` fails without it); without it the build warns.
 
+#[path = "build/fmi3.rs"]
+mod fmi3;
 #[path = "build/model_description.rs"]
 mod model_description;
 #[path = "build/package.rs"]
@@ -47,9 +51,14 @@ fn main() {
         }
         guids.push(md.guid.clone());
         code.push_str(&model_description::generate(module, &md));
-        texts.push((stem, text));
+        let text3 = fmi3::model_description(stem, &text)
+            .unwrap_or_else(|e| fail(&format!("{} (FMI 3.0 description): {e}", path.display())));
+        // Beside the generated Rust, for reading: what the FMI 3.0 FMU will carry.
+        std::fs::write(out_dir.join(format!("{stem}.fmi3.xml")), &text3).unwrap();
+        texts.push((stem, text, text3));
     }
     std::fs::write(out_dir.join("model_descriptions.rs"), code).unwrap();
+    std::fs::write(out_dir.join("fmi3_time.rs"), fmi3::time_vr_source()).unwrap();
 
     if std::env::var_os("BACKLASH_FMU_NESTED").is_some() {
         return;
@@ -74,9 +83,25 @@ fn main() {
              on older Linux: {why}"
         );
     }
-    for (stem, text) in &texts {
-        package::write_fmu(&target.join("fmu"), stem, text, &lib, &platform)
-            .unwrap_or_else(|e| fail(&e));
+    for (stem, text, text3) in &texts {
+        package::write_fmu(
+            &target.join("fmu"),
+            stem,
+            text,
+            &lib,
+            &platform,
+            &platform.folder,
+        )
+        .unwrap_or_else(|e| fail(&e));
+        package::write_fmu(
+            &target.join("fmu3"),
+            stem,
+            text3,
+            &lib,
+            &platform,
+            &platform.folder3,
+        )
+        .unwrap_or_else(|e| fail(&e));
     }
 }
 

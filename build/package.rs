@@ -3,7 +3,9 @@
 //! A build script runs before its own crate is compiled, so it cannot see the crate's final shared library.
 //! The way around (as substrate-wasm-builder does) is a nested `cargo build --release --lib` of this same
 //! package into a separate target directory, guarded by the environment variable `BACKLASH_FMU_NESTED`
-//! against recursion. One shared library serves both FMUs: `fmi2Instantiate` picks the model by GUID.
+//! against recursion. One shared library serves both FMUs in both FMI versions: it exports the fmi2* and the
+//! fmi3* functions (disjoint names), and `fmi2Instantiate` / `fmi3InstantiateCoSimulation` pick the model by
+//! GUID (instantiation token). One nested build instead of two, and the two versions cannot drift apart.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -41,8 +43,10 @@ pub fn target_dir(out_dir: &Path) -> PathBuf {
 pub struct Platform {
     /// The target triple (`TARGET`).
     pub triple: String,
-    /// The FMU's platform folder: linux64, win64, darwin64 (or the 32-bit ones).
+    /// The FMI 2.0 platform folder: linux64, win64, darwin64 (or the 32-bit ones).
     pub folder: String,
+    /// The FMI 3.0 platform tuple: x86_64-linux, aarch64-darwin, x86_64-windows, ...
+    pub folder3: String,
     /// File name of the cdylib cargo writes, and the extension the FMU's binary takes.
     pub cdylib: String,
     pub extension: &'static str,
@@ -59,6 +63,10 @@ impl Platform {
             var("CARGO_CFG_TARGET_POINTER_WIDTH")?,
         );
         let env = std::env::var("CARGO_CFG_TARGET_ENV").unwrap_or_default();
+        let arch = match var("CARGO_CFG_TARGET_ARCH")?.as_str() {
+            "x86" => "x86".to_string(),
+            other => other.to_string(),
+        };
         let (folder, prefix, extension) = match os.as_str() {
             "linux" => ("linux", "lib", "so"),
             "windows" => ("win", "", "dll"),
@@ -72,6 +80,7 @@ impl Platform {
         Ok(Self {
             triple: var("TARGET")?,
             folder: format!("{folder}{bits}"),
+            folder3: format!("{arch}-{folder}"),
             cdylib: format!("{prefix}backlash.{extension}"),
             extension,
             glibc: os == "linux" && env == "gnu",
@@ -217,13 +226,15 @@ pub fn build_cdylib(
     Ok((lib, portability))
 }
 
-/// Write `<fmu_dir>/<id>.fmu` with binaries/<platform>/<id>.<ext> and modelDescription.xml.
+/// Write `<fmu_dir>/<id>.fmu` with binaries/<folder>/<id>.<ext> and modelDescription.xml (`folder`: the
+/// platform folder of the FMI version, [`Platform::folder`] or [`Platform::folder3`]).
 pub fn write_fmu(
     fmu_dir: &Path,
     id: &str,
     model_description: &str,
     lib: &Path,
     platform: &Platform,
+    folder: &str,
 ) -> Result<PathBuf, String> {
     std::fs::create_dir_all(fmu_dir).map_err(|e| format!("{}: {e}", fmu_dir.display()))?;
     let path = fmu_dir.join(format!("{id}.fmu"));
@@ -237,9 +248,9 @@ pub fn write_fmu(
         zip.start_file("modelDescription.xml", opts)?;
         zip.write_all(model_description.as_bytes())?;
         zip.add_directory("binaries/", opts)?;
-        zip.add_directory(format!("binaries/{}/", platform.folder), opts)?;
+        zip.add_directory(format!("binaries/{folder}/"), opts)?;
         zip.start_file(
-            format!("binaries/{}/{id}.{}", platform.folder, platform.extension),
+            format!("binaries/{folder}/{id}.{}", platform.extension),
             opts.unix_permissions(0o755),
         )?;
         zip.write_all(&binary)?;

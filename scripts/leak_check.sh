@@ -8,6 +8,8 @@
 # 2. tests/fmi_fuzz.rs with a small budget (FMI_LEAK_FUZZ_CALLS per FMU, default 4000; 0 skips it): random
 #    call sequences with NULL pointers, bad sizes, corrupted states... under memcheck, for invalid reads and
 #    writes as much as for leaks.
+# 3. tests/fmi3_exports.rs, the FMI 3.0 exports: the state table (every function in every state, both FMUs)
+#    and random call sequences (FMI3_LEAK_FUZZ_CALLS per FMU, default 2000; 0 skips the FMI 3.0 run).
 #
 # Passes when memcheck reports no error and "definitely lost: 0 bytes" (or no leak at all) for each.
 # Needs valgrind (Debian: apt-get install valgrind). Builds the test binaries in release (with line tables,
@@ -22,7 +24,8 @@ fi
 
 cycles=${FMI_LEAK_CYCLES:-2000}
 fuzz_calls=${FMI_LEAK_FUZZ_CALLS:-4000}
-export FMI_LEAK_CYCLES=$cycles FMI_FUZZ_CALLS=$fuzz_calls
+fmi3_calls=${FMI3_LEAK_FUZZ_CALLS:-2000}
+export FMI_LEAK_CYCLES=$cycles FMI_FUZZ_CALLS=$fuzz_calls FMI3_FUZZ_CALLS=$fmi3_calls
 logdir=$(mktemp -d)
 trap 'rm -rf "$logdir"' EXIT
 
@@ -69,6 +72,15 @@ if [ "$fuzz_calls" != 0 ]; then
     echo "fuzz: $fuzz_calls calls per FMU"
     run fuzz \
         "$fuzz_bin" --exact random_call_sequences_over_both_fmus --test-threads=1
+fi
+
+if [ "$fmi3_calls" != 0 ]; then
+    fmi3_bin=$(test_binary fmi3_exports)
+    [ -x "$fmi3_bin" ] || { echo "leak_check: cannot find the fmi3_exports test binary" >&2; exit 1; }
+    echo "FMI 3.0: state table, and $fmi3_calls random calls per FMU"
+    run fmi3 \
+        "$fmi3_bin" --exact every_call_in_every_state_follows_the_table random_call_sequences_over_both_fmus \
+        --test-threads=1
 fi
 
 if [ "$status" = 0 ]; then

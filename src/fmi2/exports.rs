@@ -7,7 +7,8 @@
 //! Safety, for every export: the importer keeps the standard's promises (a component is NULL or a live
 //! instance called by one thread at a time; arrays hold the elements their counts say; strings are
 //! NUL-terminated). Within those, every argument is checked, and each pointer is read or written in one
-//! small helper here (`instance`, `slice`, `slice_mut`, `c_str`, `write_out`, `read_state_slot`).
+//! small helper of [`super::boundary`] (`instance`, `slice`, `slice_mut`, `c_str`, `write_out`,
+//! `read_state_slot`), which the FMI 3.0 layer shares.
 #![allow(
     non_snake_case,
     reason = "the exported functions carry the names the FMI standard gives them"
@@ -17,132 +18,17 @@
     reason = "the exports share one safety contract, stated in the module documentation"
 )]
 
+use super::boundary::{
+    c_str, deserialize, do_step, free_fmu_state, free_instance, get_fmu_state, get_values,
+    instance, serialize, serialized_size, set_debug_logging, set_fmu_state, set_values, slice,
+    slice_mut, with_instance, write_out,
+};
 use super::ffi::*;
-use super::instance::{Instance, SavedState, StepOutcome, emit_raw};
-use super::state::{Call, State};
+use super::instance::{Instance, emit_raw};
+use super::state::Call;
 use super::vars::{Value, VarType};
 use std::ffi::{CStr, c_char};
-use std::panic::{AssertUnwindSafe, catch_unwind};
-
-type Res = Result<Fmi2Status, String>;
-
-fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
-    p.downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| p.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "unknown panic".into())
-}
-
-/// The instance behind the component pointer `c`, or `None` for NULL.
-///
-/// # Safety
-/// `c` is NULL or a pointer that `fmi2Instantiate` returned and `fmi2FreeInstance` has not freed, and no
-/// other call on the same instance runs meanwhile: the importer's side of the standard.
-unsafe fn instance<'a>(c: Fmi2Component) -> Option<&'a mut Instance> {
-    // SAFETY: the caller's promise above; `as_mut` turns NULL into `None`.
-    unsafe { c.cast::<Instance>().as_mut() }
-}
-
-/// Run `f` on the instance (refusing a NULL component): state check, panic guard, error logging.
-fn with_instance(
-    inst: Option<&mut Instance>,
-    call: Call,
-    f: impl FnOnce(&mut Instance) -> Res,
-) -> Fmi2StatusC {
-    let Some(inst) = inst else {
-        return Fmi2Status::Error as Fmi2StatusC;
-    };
-    let result = catch_unwind(AssertUnwindSafe(|| {
-        inst.check_state(call)?;
-        f(&mut *inst)
-    }));
-    let status = match result {
-        Ok(Ok(status)) => status,
-        Ok(Err(reason)) => {
-            inst.log_error(call, &reason);
-            if inst.layer.state != State::Fatal {
-                inst.layer.state = State::Error;
-            }
-            Fmi2Status::Error
-        }
-        Err(p) => {
-            // A panic is a bug in this library; the instance may be inconsistent, so it goes to the error
-            // state, from which fmi2Reset rebuilds it.
-            let text = panic_text(p.as_ref());
-            inst.log_error(call, &format!("internal error: {text}"));
-            inst.layer.state = State::Error;
-            Fmi2Status::Error
-        }
-    };
-    status as Fmi2StatusC
-}
-
-/// The largest element count a slice of `T` may have.
-fn max_len<T>() -> usize {
-    (isize::MAX as usize) / std::mem::size_of::<T>().max(1)
-}
-
-/// A slice from a C array, refusing NULL when `n > 0`.
-///
-/// # Safety
-/// `ptr` is NULL or points to `n` initialised elements that nothing writes while the slice lives.
-unsafe fn slice<'a, T>(ptr: *const T, n: usize, what: &str) -> Result<&'a [T], String> {
-    if n == 0 {
-        Ok(&[])
-    } else if ptr.is_null() {
-        Err(format!("{what} is NULL but nvr = {n}"))
-    } else if n > max_len::<T>() {
-        Err(format!("nvr = {n} is too large"))
-    } else {
-        // SAFETY: not NULL, `n` elements within the size limit of a slice; readable by the caller's promise.
-        Ok(unsafe { std::slice::from_raw_parts(ptr, n) })
-    }
-}
-
-/// A mutable slice from a C array, refusing NULL when `n > 0`.
-///
-/// # Safety
-/// `ptr` is NULL or points to `n` initialised elements that nothing else reads or writes while the slice
-/// lives.
-unsafe fn slice_mut<'a, T>(ptr: *mut T, n: usize, what: &str) -> Result<&'a mut [T], String> {
-    if n == 0 {
-        Ok(&mut [])
-    } else if ptr.is_null() {
-        Err(format!("{what} is NULL but nvr = {n}"))
-    } else if n > max_len::<T>() {
-        Err(format!("nvr = {n} is too large"))
-    } else {
-        // SAFETY: not NULL, `n` elements within the size limit of a slice; writable by the caller's promise.
-        Ok(unsafe { std::slice::from_raw_parts_mut(ptr, n) })
-    }
-}
-
-/// A C string as UTF-8, refusing NULL.
-///
-/// # Safety
-/// `p` is NULL or points to a NUL-terminated string that outlives the result.
-unsafe fn c_str<'a>(p: Fmi2String, what: &str) -> Result<&'a str, String> {
-    if p.is_null() {
-        return Err(format!("{what} is NULL"));
-    }
-    // SAFETY: not NULL, and NUL-terminated by the caller's promise.
-    unsafe { CStr::from_ptr(p) }
-        .to_str()
-        .map_err(|_| format!("{what} is not valid UTF-8"))
-}
-
-/// Store `value` in the importer's output variable at `p`, refusing NULL.
-///
-/// # Safety
-/// `p` is NULL or valid for a write of one `T` (it need not be initialised: the old value is not read).
-unsafe fn write_out<T: Copy>(p: *mut T, value: T, what: &str) -> Result<(), String> {
-    if p.is_null() {
-        return Err(format!("{what} is NULL"));
-    }
-    // SAFETY: not NULL, and writable by the caller's promise; `T: Copy` has nothing to drop.
-    unsafe { p.write(value) };
-    Ok(())
-}
+use std::panic::catch_unwind;
 
 #[unsafe(no_mangle)]
 pub extern "C" fn fmi2GetTypesPlatform() -> *const c_char {
@@ -209,7 +95,7 @@ pub unsafe extern "C" fn fmi2Instantiate(
             Ok(g) => g,
             Err(e) => return refuse(&e),
         };
-        let slave = match crate::fmus::instantiate(guid) {
+        let slave = match crate::FMUS.instantiate(guid, "fmuGUID") {
             Ok(s) => s,
             Err(e) => return refuse(&e),
         };
@@ -229,21 +115,8 @@ pub unsafe extern "C" fn fmi2Instantiate(
 
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2FreeInstance(c: Fmi2Component) {
-    if c.is_null() {
-        return;
-    }
-    let _ = catch_unwind(|| {
-        // SAFETY: c came from fmi2Instantiate and is freed once (the importer's side of the contract).
-        let inst = unsafe { &*(c as *mut Instance) };
-        if let Err(reason) = inst.check_state(Call::FreeInstance) {
-            // Freeing is allowed everywhere except during an asynchronous step or after fatal; the memory is
-            // released anyway, as an importer freeing an instance will not call it again.
-            inst.log_error(Call::FreeInstance, &reason);
-        }
-        inst.log_call(Call::FreeInstance, String::new);
-        // SAFETY: the Box that fmi2Instantiate leaked, freed here once; `inst` is not used after this.
-        drop(unsafe { Box::from_raw(c as *mut Instance) });
-    });
+    // SAFETY: `c` is NULL or a live instance, freed once (the importer's side of the standard).
+    unsafe { free_instance(c, Call::FreeInstance) }
 }
 
 #[unsafe(no_mangle)]
@@ -253,19 +126,16 @@ pub unsafe extern "C" fn fmi2SetDebugLogging(
     n_categories: usize,
     categories: *const Fmi2String,
 ) -> Fmi2StatusC {
-    // SAFETY: `c` is NULL or a live instance, as the standard requires of the importer.
-    let inst = unsafe { instance(c) };
-    with_instance(inst, Call::SetDebugLogging, |inst| {
-        // SAFETY: the importer passes `n_categories` category strings at `categories`.
-        let cats = unsafe { slice(categories, n_categories, "categories") }?;
-        let cats = cats
-            .iter()
-            // SAFETY: each category is NULL or a NUL-terminated string (the importer's promise).
-            .map(|&p| unsafe { c_str(p, "a category") }.map(str::to_string))
-            .collect::<Result<Vec<_>, _>>()?;
-        inst.set_debug_logging(logging_on != FMI2_FALSE, &cats)?;
-        Ok(Fmi2Status::Ok)
-    })
+    // SAFETY: the arguments as the standard requires of the importer (see `set_debug_logging`).
+    unsafe {
+        set_debug_logging(
+            c,
+            Call::SetDebugLogging,
+            logging_on != FMI2_FALSE,
+            n_categories,
+            categories,
+        )
+    }
 }
 
 #[unsafe(no_mangle)]
@@ -338,58 +208,6 @@ pub unsafe extern "C" fn fmi2Reset(c: Fmi2Component) -> Fmi2StatusC {
     })
 }
 
-/// A getter's body: `value[k]` = `convert` of the variable `vr[k]`.
-///
-/// # Safety
-/// `c` as for [`instance`]; `vr` and `value` are NULL or hold `nvr` elements, as the standard requires.
-unsafe fn get_values<T>(
-    c: Fmi2Component,
-    call: Call,
-    ty: VarType,
-    vr: *const Fmi2ValueReference,
-    nvr: usize,
-    value: *mut T,
-    convert: impl Fn(&Value) -> T,
-) -> Fmi2StatusC {
-    // SAFETY: `c` as this function's caller promises.
-    let inst = unsafe { instance(c) };
-    with_instance(inst, call, |inst| {
-        // SAFETY: `vr` and `value` hold `nvr` elements, as this function's caller promises.
-        let vrs = unsafe { slice(vr, nvr, "vr") }?;
-        // SAFETY: as above.
-        let out = unsafe { slice_mut(value, nvr, "value") }?;
-        // No allocation: the values go straight to the caller's array.
-        inst.get_with(ty, vrs, |k, v| out[k] = convert(v))?;
-        Ok(Fmi2Status::Ok)
-    })
-}
-
-/// A setter's body: the variable `vr[k]` = `convert(value[k])`.
-///
-/// # Safety
-/// `c` as for [`instance`]; `vr` and `value` are NULL or hold `nvr` elements, as the standard requires.
-unsafe fn set_values<T: Copy>(
-    c: Fmi2Component,
-    call: Call,
-    ty: VarType,
-    vr: *const Fmi2ValueReference,
-    nvr: usize,
-    value: *const T,
-    convert: impl Fn(T) -> Result<Value, String>,
-) -> Fmi2StatusC {
-    // SAFETY: `c` as this function's caller promises.
-    let inst = unsafe { instance(c) };
-    with_instance(inst, call, |inst| {
-        // SAFETY: `vr` and `value` hold `nvr` elements, as this function's caller promises.
-        let vrs = unsafe { slice(vr, nvr, "vr") }?;
-        // SAFETY: as above.
-        let vals = unsafe { slice(value, nvr, "value") }?;
-        // No allocation: each value is converted where it is checked and again where it is applied.
-        inst.set_with(ty, vrs, |k| convert(vals[k]))?;
-        Ok(Fmi2Status::Ok)
-    })
-}
-
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2GetReal(
     c: Fmi2Component,
@@ -406,6 +224,7 @@ pub unsafe extern "C" fn fmi2GetReal(
             vr,
             nvr,
             value,
+            nvr,
             Value::as_real,
         )
     }
@@ -427,6 +246,7 @@ pub unsafe extern "C" fn fmi2GetInteger(
             vr,
             nvr,
             value,
+            nvr,
             Value::as_integer,
         )
     }
@@ -441,9 +261,18 @@ pub unsafe extern "C" fn fmi2GetBoolean(
 ) -> Fmi2StatusC {
     // SAFETY: the arguments as the standard requires of the importer (see `get_values`).
     unsafe {
-        get_values(c, Call::GetBoolean, VarType::Boolean, vr, nvr, value, |v| {
-            if v.as_bool() { FMI2_TRUE } else { FMI2_FALSE }
-        })
+        get_values(
+            c,
+            Call::GetBoolean,
+            VarType::Boolean,
+            vr,
+            nvr,
+            value,
+            nvr,
+            |v| {
+                if v.as_bool() { FMI2_TRUE } else { FMI2_FALSE }
+            },
+        )
     }
 }
 
@@ -479,7 +308,7 @@ pub unsafe extern "C" fn fmi2SetReal(
 ) -> Fmi2StatusC {
     // SAFETY: the arguments as the standard requires of the importer (see `set_values`).
     unsafe {
-        set_values(c, Call::SetReal, VarType::Real, vr, nvr, value, |v| {
+        set_values(c, Call::SetReal, VarType::Real, vr, nvr, value, nvr, |v| {
             Ok(Value::Real(v))
         })
     }
@@ -494,9 +323,16 @@ pub unsafe extern "C" fn fmi2SetInteger(
 ) -> Fmi2StatusC {
     // SAFETY: the arguments as the standard requires of the importer (see `set_values`).
     unsafe {
-        set_values(c, Call::SetInteger, VarType::Integer, vr, nvr, value, |v| {
-            Ok(Value::Integer(v))
-        })
+        set_values(
+            c,
+            Call::SetInteger,
+            VarType::Integer,
+            vr,
+            nvr,
+            value,
+            nvr,
+            |v| Ok(Value::Integer(v)),
+        )
     }
 }
 
@@ -509,9 +345,16 @@ pub unsafe extern "C" fn fmi2SetBoolean(
 ) -> Fmi2StatusC {
     // SAFETY: the arguments as the standard requires of the importer (see `set_values`).
     unsafe {
-        set_values(c, Call::SetBoolean, VarType::Boolean, vr, nvr, value, |v| {
-            Ok(Value::Boolean(v != FMI2_FALSE))
-        })
+        set_values(
+            c,
+            Call::SetBoolean,
+            VarType::Boolean,
+            vr,
+            nvr,
+            value,
+            nvr,
+            |v| Ok(Value::Boolean(v != FMI2_FALSE)),
+        )
     }
 }
 
@@ -527,31 +370,18 @@ pub unsafe extern "C" fn fmi2SetString(
         unsafe { c_str(p, "a string value") }.map(|s| Value::String(s.to_string()))
     };
     // SAFETY: the arguments as the standard requires of the importer (see `set_values`).
-    unsafe { set_values(c, Call::SetString, VarType::String, vr, nvr, value, convert) }
-}
-
-/// Read the importer's `*FMUstate` from the address `state`, after making sure `state` is not itself one of
-/// the instance's states (an importer passing the state where its address is expected, as some do with
-/// fmi2FreeFMUstate): that pointer is refused without being read through.
-///
-/// # Safety
-/// `state` is NULL, one of the instance's states, or valid for reading an `fmi2FMUstate`.
-unsafe fn read_state_slot(
-    inst: &Instance,
-    state: *mut Fmi2FmuState,
-) -> Result<*mut SavedState, String> {
-    if state.is_null() {
-        return Err("FMUstate is NULL (expected the address of an fmi2FMUstate variable)".into());
+    unsafe {
+        set_values(
+            c,
+            Call::SetString,
+            VarType::String,
+            vr,
+            nvr,
+            value,
+            nvr,
+            convert,
+        )
     }
-    if inst.issued_state(state as *const SavedState).is_ok() {
-        return Err(
-            "the argument is an fmi2FMUstate itself, not the address of a variable holding it \
-             (pass &state)"
-                .into(),
-        );
-    }
-    // SAFETY: neither NULL nor one of our states, so by the caller's promise the importer's variable.
-    Ok(unsafe { state.read() } as *mut SavedState)
 }
 
 #[unsafe(no_mangle)]
@@ -559,30 +389,14 @@ pub unsafe extern "C" fn fmi2GetFMUstate(
     c: Fmi2Component,
     state: *mut Fmi2FmuState,
 ) -> Fmi2StatusC {
-    // SAFETY: `c` is NULL or a live instance, as the standard requires of the importer.
-    let inst = unsafe { instance(c) };
-    with_instance(inst, Call::GetFmuState, |inst| {
-        // SAFETY: `state` is NULL or the address of the importer's fmi2FMUstate variable (the standard).
-        let existing = unsafe { read_state_slot(inst, state) }?;
-        let saved = inst.save_state()?;
-        let issued = inst.issue_state(existing, saved)? as Fmi2FmuState;
-        // SAFETY: the same variable, writable too.
-        unsafe { write_out(state, issued, "FMUstate") }?;
-        Ok(Fmi2Status::Ok)
-    })
+    // SAFETY: the arguments as the standard requires of the importer (see `get_fmu_state`).
+    unsafe { get_fmu_state(c, Call::GetFmuState, state) }
 }
 
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn fmi2SetFMUstate(c: Fmi2Component, state: Fmi2FmuState) -> Fmi2StatusC {
-    // SAFETY: `c` is NULL or a live instance, as the standard requires of the importer.
-    let inst = unsafe { instance(c) };
-    with_instance(inst, Call::SetFmuState, |inst| {
-        if state.is_null() {
-            return Err("FMUstate is NULL".into());
-        }
-        inst.restore_issued_state(state as *const SavedState)?;
-        Ok(Fmi2Status::Ok)
-    })
+    // SAFETY: the arguments as the standard requires of the importer (see `set_fmu_state`).
+    unsafe { set_fmu_state(c, Call::SetFmuState, state) }
 }
 
 #[unsafe(no_mangle)]
@@ -590,18 +404,8 @@ pub unsafe extern "C" fn fmi2FreeFMUstate(
     c: Fmi2Component,
     state: *mut Fmi2FmuState,
 ) -> Fmi2StatusC {
-    // SAFETY: `c` is NULL or a live instance, as the standard requires of the importer.
-    let inst = unsafe { instance(c) };
-    with_instance(inst, Call::FreeFmuState, |inst| {
-        // SAFETY: `state` is NULL or the address of the importer's fmi2FMUstate variable (the standard).
-        let s = unsafe { read_state_slot(inst, state) }?;
-        if !s.is_null() {
-            inst.free_state(s)?;
-            // SAFETY: the same variable, writable too.
-            unsafe { write_out(state, std::ptr::null_mut(), "FMUstate") }?;
-        }
-        Ok(Fmi2Status::Ok)
-    })
+    // SAFETY: the arguments as the standard requires of the importer (see `free_fmu_state`).
+    unsafe { free_fmu_state(c, Call::FreeFmuState, state) }
 }
 
 #[unsafe(no_mangle)]
@@ -610,17 +414,8 @@ pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
     state: Fmi2FmuState,
     size: *mut usize,
 ) -> Fmi2StatusC {
-    // SAFETY: `c` is NULL or a live instance, as the standard requires of the importer.
-    let inst = unsafe { instance(c) };
-    with_instance(inst, Call::SerializedFmuStateSize, |inst| {
-        if state.is_null() || size.is_null() {
-            return Err("FMUstate or size is NULL".into());
-        }
-        let n = inst.issued_state(state as *const SavedState)?.bytes.len();
-        // SAFETY: `size` is the address of the importer's variable (the standard).
-        unsafe { write_out(size, n, "size") }?;
-        Ok(Fmi2Status::Ok)
-    })
+    // SAFETY: the arguments as the standard requires of the importer (see `serialized_size`).
+    unsafe { serialized_size(c, Call::SerializedFmuStateSize, state, size) }
 }
 
 #[unsafe(no_mangle)]
@@ -630,24 +425,8 @@ pub unsafe extern "C" fn fmi2SerializeFMUstate(
     bytes: *mut Fmi2Byte,
     size: usize,
 ) -> Fmi2StatusC {
-    // SAFETY: `c` is NULL or a live instance, as the standard requires of the importer.
-    let inst = unsafe { instance(c) };
-    with_instance(inst, Call::SerializeFmuState, |inst| {
-        if state.is_null() {
-            return Err("FMUstate is NULL".into());
-        }
-        let saved = inst.issued_state(state as *const SavedState)?;
-        if size != saved.bytes.len() {
-            return Err(format!(
-                "size {size} differs from fmi2SerializedFMUstateSize {}",
-                saved.bytes.len()
-            ));
-        }
-        // SAFETY: the importer passes a buffer of `size` bytes (the standard).
-        let out = unsafe { slice_mut(bytes as *mut u8, size, "serializedState") }?;
-        out.copy_from_slice(&saved.bytes);
-        Ok(Fmi2Status::Ok)
-    })
+    // SAFETY: the arguments as the standard requires of the importer (see `serialize`).
+    unsafe { serialize(c, Call::SerializeFmuState, state, bytes.cast::<u8>(), size) }
 }
 
 #[unsafe(no_mangle)]
@@ -657,22 +436,16 @@ pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
     size: usize,
     state: *mut Fmi2FmuState,
 ) -> Fmi2StatusC {
-    // SAFETY: `c` is NULL or a live instance, as the standard requires of the importer.
-    let inst = unsafe { instance(c) };
-    with_instance(inst, Call::DeSerializeFmuState, |inst| {
-        // SAFETY: `state` is NULL or the address of the importer's fmi2FMUstate variable (the standard).
-        let existing = unsafe { read_state_slot(inst, state) }?;
-        // SAFETY: the importer passes `size` bytes (the standard).
-        let data = unsafe { slice(bytes as *const u8, size, "serializedState") }?;
-        inst.check_state_bytes(data)?;
-        let saved = SavedState {
-            bytes: data.to_vec(),
-        };
-        let issued = inst.issue_state(existing, saved)? as Fmi2FmuState;
-        // SAFETY: the same variable, writable too.
-        unsafe { write_out(state, issued, "FMUstate") }?;
-        Ok(Fmi2Status::Ok)
-    })
+    // SAFETY: the arguments as the standard requires of the importer (see `deserialize`).
+    unsafe {
+        deserialize(
+            c,
+            Call::DeSerializeFmuState,
+            bytes.cast::<u8>(),
+            size,
+            state,
+        )
+    }
 }
 
 #[unsafe(no_mangle)]
@@ -735,33 +508,12 @@ pub unsafe extern "C" fn fmi2DoStep(
     // SAFETY: `c` is NULL or a live instance, as the standard requires of the importer.
     let inst = unsafe { instance(c) };
     with_instance(inst, Call::DoStep, |inst| {
-        inst.log_call(Call::DoStep, || {
-            format!("currentCommunicationPoint={current_communication_point}, communicationStepSize={communication_step_size}")
-        });
-        match inst.do_step(current_communication_point, communication_step_size)? {
-            StepOutcome::Complete => Ok(Fmi2Status::Ok),
-            StepOutcome::Cut { at, reached, limit } => {
-                // fmi2Discard: only part of the step was computed; the standard's step failed state
-                // follows, from which the master reads fmi2LastSuccessfulTime, then terminates or
-                // restores an FMU state and retries with a shorter step.
-                inst.layer.state = State::StepFailed;
-                if inst.log.discards {
-                    inst.emit(
-                        Fmi2Status::Discard,
-                        "logStatusDiscard",
-                        &format!(
-                            "fmi2DoStep: the step from {current_communication_point} by \
-                             {communication_step_size} reaches {reached} sample instants; {} takes at most \
-                             {limit} per step, so it stopped at t = {at} (fmi2LastSuccessfulTime). Step by \
-                             at most Ts = {}",
-                            inst.slave.identifier(),
-                            inst.slave.sample_period()
-                        ),
-                    );
-                }
-                Ok(Fmi2Status::Discard)
-            }
-        }
+        do_step(
+            inst,
+            Call::DoStep,
+            current_communication_point,
+            communication_step_size,
+        )
     })
 }
 

@@ -11,7 +11,7 @@
 
 use super::Model;
 use super::ffi::{Fmi2CallbackFunctions, Fmi2Status};
-use super::state::{Call, State};
+use super::state::State;
 use super::vars::{Causality, Start, Value, VarInfo, VarType, Variability};
 use serde::{Deserialize, Serialize};
 use std::ffi::{CStr, CString};
@@ -340,6 +340,26 @@ pub struct SavedState {
     pub bytes: Vec<u8>,
 }
 
+/// A function of a protocol's API, as the instance's state machine sees it (FMI 2.0's `state::Call`, FMI
+/// 3.0's `crate::fmi3::state::Call`): its C name and whether the protocol's table allows it in a state.
+pub trait Api: Copy + std::panic::UnwindSafe + std::panic::RefUnwindSafe {
+    fn name(self) -> &'static str;
+    fn allowed_in(self, state: State) -> bool;
+}
+
+/// Where an instance's messages go: the logger the importer gave at instantiation, in the form of the
+/// protocol it instantiated with. The status is the protocol's numeric status (the values of fmi2Status and
+/// fmi3Status agree from OK to Fatal).
+pub trait Logger {
+    fn log(&self, instance: &CStr, status: Fmi2Status, category: &str, text: &str);
+}
+
+impl Logger for Fmi2CallbackFunctions {
+    fn log(&self, instance: &CStr, status: Fmi2Status, category: &str, text: &str) {
+        emit_raw(self, instance, status, category, text);
+    }
+}
+
 /// Log categories the instance can switch on.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct LogSwitches {
@@ -352,7 +372,7 @@ pub struct LogSwitches {
 /// One FMU instance.
 pub struct Instance {
     pub name: CString,
-    callbacks: Fmi2CallbackFunctions,
+    logger: Box<dyn Logger>,
     pub logging_on: bool,
     pub log: LogSwitches,
     pub layer: LayerState,
@@ -371,25 +391,26 @@ pub struct Instance {
     issued: Vec<*mut SavedState>,
 }
 
-// SAFETY: the raw pointers are the importer's callbacks and environment, and the FMU states this instance
+// SAFETY: the raw pointers are the importer's callbacks and environment (in `logger`), and the FMU states this instance
 // owns; the standard lets the importer call an instance from any thread as long as calls are not concurrent,
 // so the instance may move between threads.
 unsafe impl Send for Instance {}
 
-fn cstring(text: &str) -> CString {
+/// `text` as a C string (an interior NUL becomes a space).
+pub fn cstring(text: &str) -> CString {
     CString::new(text.replace('\0', " ")).unwrap_or_default()
 }
 
 impl Instance {
     pub fn new(
         name: &str,
-        callbacks: Fmi2CallbackFunctions,
+        logger: impl Logger + 'static,
         logging_on: bool,
         slave: Box<dyn Slave>,
     ) -> Self {
         Self {
             name: cstring(name),
-            callbacks,
+            logger: Box::new(logger),
             logging_on,
             log: LogSwitches {
                 errors: true,
@@ -420,13 +441,13 @@ impl Instance {
         }
     }
 
-    /// Send one message to the importer's logger (see [`emit_raw`]).
+    /// Send one message to the importer's logger (see [`Logger`]).
     pub fn emit(&self, status: Fmi2Status, category: &str, text: &str) {
-        emit_raw(&self.callbacks, &self.name, status, category, text);
+        self.logger.log(&self.name, status, category, text);
     }
 
     /// Log a refused call under logStatusError (always on: the importer needs the reason).
-    pub fn log_error(&self, call: Call, reason: &str) {
+    pub fn log_error(&self, call: impl Api, reason: &str) {
         if self.log.errors {
             self.emit(
                 Fmi2Status::Error,
@@ -436,7 +457,7 @@ impl Instance {
         }
     }
 
-    pub fn log_call(&self, call: Call, args: impl FnOnce() -> String) {
+    pub fn log_call(&self, call: impl Api, args: impl FnOnce() -> String) {
         if self.logging_on && self.log.calls {
             self.emit(
                 Fmi2Status::Ok,
@@ -447,7 +468,7 @@ impl Instance {
     }
 
     /// Refuse a call the state machine does not allow, with a reason that names the call and the state.
-    pub fn check_state(&self, call: Call) -> Result<(), String> {
+    pub fn check_state(&self, call: impl Api) -> Result<(), String> {
         if call.allowed_in(self.layer.state) {
             return Ok(());
         }

@@ -6,10 +6,16 @@
 //! this crate are small adapters in `crate::fmus`.
 //!
 //! One shared library serves both FMUs: `fmi2Instantiate` picks the model whose GUID the importer passes
-//! (`crate::fmus::instantiate`).
+//! from those registered in `crate::FMUS` ([`registry`]).
+//!
+//! The FMI 3.0 layer (`crate::fmi3`) serves the same models through the same core: the [`Model`] trait,
+//! the [`instance::Instance`] (timing, argument checks, FMU state, logging) and the [`registry`]; what is
+//! FMI 2.0 only here is [`exports`], [`ffi`] and the call table of [`state`].
 
+pub mod boundary;
 pub mod ffi;
 pub mod instance;
+pub mod registry;
 pub mod state;
 pub mod vars;
 

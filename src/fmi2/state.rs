@@ -5,6 +5,8 @@
 //! `StepCanceled` exist in the standard for asynchronous steps; this implementation steps synchronously, so
 //! an instance is never observed in them, but the table keeps them for completeness.
 
+use super::instance::Api;
+
 /// The states of a co-simulation slave.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum State {
@@ -130,6 +132,17 @@ impl Call {
 
     /// The C name of the function.
     pub fn name(self) -> &'static str {
+        <Self as Api>::name(self)
+    }
+
+    /// Whether the standard allows this call in state `s`.
+    pub fn allowed_in(self, s: State) -> bool {
+        <Self as Api>::allowed_in(self, s)
+    }
+}
+
+impl Api for Call {
+    fn name(self) -> &'static str {
         match self {
             Call::GetTypesPlatform => "fmi2GetTypesPlatform",
             Call::GetVersion => "fmi2GetVersion",
@@ -168,8 +181,7 @@ impl Call {
         }
     }
 
-    /// Whether the standard allows this call in state `s`.
-    pub fn allowed_in(self, s: State) -> bool {
+    fn allowed_in(self, s: State) -> bool {
         use State::*;
         match self {
             Call::GetTypesPlatform | Call::GetVersion => s != Fatal,

@@ -10,20 +10,11 @@ include!(concat!(env!("OUT_DIR"), "/model_descriptions.rs"));
 pub mod estimator;
 pub mod plant;
 
-use crate::fmi2::instance::{Adapter, Slave};
+use crate::fmi2::registry::{Entry, Registry};
 
-/// The model whose GUID the importer passed to fmi2Instantiate (one binary serves both FMUs), or why there
-/// is none (the message names the GUIDs this binary knows).
-pub fn instantiate(guid: &str) -> Result<Box<dyn Slave>, String> {
-    if guid == backlash_plant::GUID {
-        Ok(Box::new(Adapter::<plant::PlantFmu>::new()))
-    } else if guid == mrgia_estimator::GUID {
-        Ok(Box::new(Adapter::<estimator::EstimatorFmu>::new()))
-    } else {
-        Err(format!(
-            "fmuGUID {guid} matches neither {} nor {}: the modelDescription.xml and the binary do not belong together",
-            backlash_plant::GUID,
-            mrgia_estimator::GUID
-        ))
-    }
-}
+/// The FMUs of this crate, registered for the protocol layers (which reach it as `crate::FMUS`): one binary
+/// serves both, the layer picks the model by the GUID or instantiation token the importer passes.
+pub static REGISTRY: Registry = Registry::new(&[
+    Entry::of::<plant::PlantFmu>(),
+    Entry::of::<estimator::EstimatorFmu>(),
+]);

@@ -6,6 +6,7 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 FMU_DIR = pathlib.Path(os.environ.get("BACKLASH_FMU_DIR", ROOT / "target" / "fmu"))
+FMU3_DIR = pathlib.Path(os.environ.get("BACKLASH_FMU3_DIR", ROOT / "target" / "fmu3"))
 CLI = pathlib.Path(os.environ.get("BACKLASH_CLI", ROOT / "target" / "release" / "backlash"))
 
 
@@ -38,6 +39,20 @@ class Log:
 LOG = Log()
 
 
+class Log3:
+    """Records what FMI 3.0 FMUs log: pass `LOG3.record` as FMU3Slave.instantiate's logMessage (fmpy keeps the
+    ctypes callback with the slave; FMI 3.0 messages are plain text, no variadic format)."""
+
+    def __init__(self):
+        self.lines = []
+
+    def record(self, env, status, category, message):
+        self.lines.append((status, category.decode(), message.decode()))
+
+
+LOG3 = Log3()
+
+
 def _need(path):
     if not path.exists():
         pytest.fail(f"{path} is missing: run `cargo build --release` first")
@@ -52,6 +67,16 @@ def plant_fmu():
 @pytest.fixture(scope="session")
 def estimator_fmu():
     return _need(FMU_DIR / "MrgiaEstimator.fmu")
+
+
+@pytest.fixture(scope="session")
+def plant_fmu3():
+    return _need(FMU3_DIR / "BacklashPlant.fmu")
+
+
+@pytest.fixture(scope="session")
+def estimator_fmu3():
+    return _need(FMU3_DIR / "MrgiaEstimator.fmu")
 
 
 @pytest.fixture(scope="session")

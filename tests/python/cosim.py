@@ -1,4 +1,5 @@
-"""A small co-simulation master for the plant + estimator pair, on fmpy's FMU2Slave.
+"""A small co-simulation master for the plant + estimator pair, on fmpy's FMU2Slave (or FMU3Slave for the
+FMI 3.0 FMUs of target/fmu3, behind the same calls: see `_Fmi3`).
 
 Wiring (the FMUs' timing in docs/INTERFACE.md): at t_k = k*Ts the same input u(k) goes to plant.u and estimator.u, and the
 plant's output y(k) (which depends on inputs up to u(k-delay) only: no direct feedthrough) goes to
@@ -23,6 +24,7 @@ from fmpy import extract, read_model_description
 from fmpy.container_fmu.cli import create_container_fmu
 from fmpy.container_fmu.config import Component, Configuration, Connection
 from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi3 import FMU3Slave
 from fmpy.model_description import CoSimulation, DefaultExperiment, ModelDescription, ModelVariable, Unknown
 
 ESTIMATE_NAMES = ("a1", "a2", "a3", "a4", "b0", "b1", "b2", "b3", "b4", "m2", "c1", "c2")
@@ -56,8 +58,53 @@ def _callbacks(callbacks):
     return LOG.callbacks
 
 
+class _Fmi3:
+    """An FMU3Slave behind the FMU2Slave calls this master makes: setupExperiment's start time goes to
+    fmi3EnterInitializationMode, Real is Float64, Integer is Int32, and doStep's outputs (event handling, early
+    return: never set by these FMUs) are checked and dropped."""
+
+    def __init__(self, fmu):
+        self.fmu = fmu
+        self.start_time = 0.0
+
+    def setupExperiment(self, startTime=0.0):
+        self.start_time = startTime
+
+    def enterInitializationMode(self):
+        self.fmu.enterInitializationMode(startTime=self.start_time)
+
+    def exitInitializationMode(self):
+        self.fmu.exitInitializationMode()
+
+    def getReal(self, vr):
+        return self.fmu.getFloat64(vr)
+
+    def setReal(self, vr, values):
+        self.fmu.setFloat64(vr, values)
+
+    def setInteger(self, vr, values):
+        self.fmu.setInt32(vr, values)
+
+    def getBoolean(self, vr):
+        return self.fmu.getBoolean(vr)
+
+    def setBoolean(self, vr, values):
+        self.fmu.setBoolean(vr, values)
+
+    def doStep(self, t, h):
+        event, terminate, early, last = self.fmu.doStep(t, h)
+        assert not (event or terminate or early), (event, terminate, early)
+        assert last == t + h, (last, t + h)
+
+    def terminate(self):
+        self.fmu.terminate()
+
+    def freeInstance(self):
+        self.fmu.freeInstance()
+
+
 class _Slave:
-    """An instantiated FMU2Slave with its variables by name."""
+    """An instantiated FMU2Slave (or FMU3Slave behind `_Fmi3`) with its variables by name."""
 
     def __init__(self, path, instance_name, callbacks):
         self.md = read_model_description(path)
@@ -65,13 +112,25 @@ class _Slave:
         self.unzipdir = extract(path)
         self.instantiated = False
         try:
-            self.fmu = FMU2Slave(
-                guid=self.md.guid,
-                unzipDirectory=self.unzipdir,
-                modelIdentifier=self.md.coSimulation.modelIdentifier,
-                instanceName=instance_name,
-            )
-            self.fmu.instantiate(callbacks=callbacks)
+            if self.md.fmiVersion.startswith("3"):
+                from conftest import LOG3  # lazily, as LOG: the one session-wide FMI 3.0 logger
+
+                fmu = FMU3Slave(
+                    guid=self.md.instantiationToken,
+                    unzipDirectory=self.unzipdir,
+                    modelIdentifier=self.md.coSimulation.modelIdentifier,
+                    instanceName=instance_name,
+                )
+                fmu.instantiate(logMessage=LOG3.record)
+                self.fmu = _Fmi3(fmu)
+            else:
+                self.fmu = FMU2Slave(
+                    guid=self.md.guid,
+                    unzipDirectory=self.unzipdir,
+                    modelIdentifier=self.md.coSimulation.modelIdentifier,
+                    instanceName=instance_name,
+                )
+                self.fmu.instantiate(callbacks=callbacks)
         except Exception:
             shutil.rmtree(self.unzipdir, ignore_errors=True)
             raise
@@ -83,9 +142,9 @@ class _Slave:
     def set_start(self, values):
         for name, value in (values or {}).items():
             v = self.vars[name]
-            if v.type == "Real":
+            if v.type in ("Real", "Float64"):
                 self.fmu.setReal([v.valueReference], [float(value)])
-            elif v.type in ("Integer", "Enumeration"):
+            elif v.type in ("Integer", "Int32", "Enumeration"):
                 self.fmu.setInteger([v.valueReference], [int(value)])
             elif v.type == "Boolean":
                 self.fmu.setBoolean([v.valueReference], [bool(value)])
