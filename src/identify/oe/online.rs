@@ -288,14 +288,20 @@ impl Refined {
     /// Standard errors of [`Refined::values`], same layout; all 0 during the warm-up. No allocation.
     pub fn std_err_values(&self) -> [f64; MAX_P] {
         let mut s = [0.0; MAX_P];
-        if let Some(r) = &self.rec {
-            let p = r.theta.p();
-            let s2 = r.noise_variance();
-            for (i, si) in s.iter_mut().enumerate().take(p) {
-                *si = (s2 * r.p[i][i] * r.w2 / r.w1).max(0.0).sqrt();
-            }
+        for (i, si) in s.iter_mut().enumerate() {
+            *si = self.std_err_at(i);
         }
         s
+    }
+
+    /// Entry `i` of [`Refined::std_err_values`] (0 beyond the parameter count).
+    pub fn std_err_at(&self, i: usize) -> f64 {
+        match &self.rec {
+            Some(r) if i < r.theta.p() => (r.noise_variance() * r.p[i][i] * r.w2 / r.w1)
+                .max(0.0)
+                .sqrt(),
+            _ => 0.0,
+        }
     }
 
     /// The current estimate.
@@ -361,6 +367,91 @@ impl Refined {
             return Err("refine state: inconsistent recursion".into());
         }
         Ok(())
+    }
+}
+
+/// The on-line estimator of the FMU and of `identify mrgia`: plain MRGIA, or with `refine`, [`Refined`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum OnlineEstimator {
+    Plain(Mrgia),
+    Refined(Box<Refined>),
+}
+
+impl OnlineEstimator {
+    pub fn new(cfg: MrgiaConfig, refine: bool) -> Result<Self, ParamError> {
+        Ok(if refine {
+            Self::Refined(Box::new(Refined::new(cfg)?))
+        } else {
+            Self::Plain(Mrgia::new(cfg)?)
+        })
+    }
+
+    /// Whether this is the `refine` kind.
+    pub fn refining_kind(&self) -> bool {
+        matches!(self, Self::Refined(_))
+    }
+
+    pub fn config(&self) -> &MrgiaConfig {
+        match self {
+            Self::Plain(m) => m.config(),
+            Self::Refined(r) => r.config(),
+        }
+    }
+
+    /// Entry `i` of the estimate `[a.., b.., m2, c1, c2]` (MRGIA's theta holds m2 - 1). No allocation.
+    pub fn value(&self, i: usize) -> f64 {
+        match self {
+            Self::Plain(m) => {
+                let t = m.theta();
+                t[i] + if i + 3 == t.len() { 1.0 } else { 0.0 }
+            }
+            Self::Refined(r) => r.values()[i],
+        }
+    }
+
+    /// Standard error of entry `i` (0 when unknown: plain MRGIA, the warm-up). No allocation.
+    pub fn std_err_at(&self, i: usize) -> f64 {
+        match self {
+            Self::Plain(_) => 0.0,
+            Self::Refined(r) => r.std_err_at(i),
+        }
+    }
+
+    pub fn estimate(&self) -> Estimate {
+        match self {
+            Self::Plain(m) => m.estimate(),
+            Self::Refined(r) => r.estimate(),
+        }
+    }
+
+    /// Standard errors, None when unknown.
+    pub fn std_err(&self) -> Option<StdErr> {
+        match self {
+            Self::Plain(_) => None,
+            Self::Refined(r) => r.std_err(),
+        }
+    }
+
+    pub fn last(&self) -> StepResult {
+        match self {
+            Self::Plain(m) => m.last(),
+            Self::Refined(r) => r.last(),
+        }
+    }
+
+    pub fn update(&mut self, u: f64, y: f64) -> StepResult {
+        match self {
+            Self::Plain(m) => m.update(u, y),
+            Self::Refined(r) => r.update(u, y),
+        }
+    }
+
+    /// Consistency of a deserialised state (see [`Refined::check`]).
+    pub fn check(&self) -> Result<(), String> {
+        match self {
+            Self::Plain(_) => Ok(()),
+            Self::Refined(r) => r.check(),
+        }
     }
 }
 
