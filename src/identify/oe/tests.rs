@@ -638,8 +638,8 @@ fn grid_study_does_not_depend_on_the_thread_count() {
         serde_json::to_string(&one).unwrap(),
         serde_json::to_string(&four).unwrap()
     );
-    // 2 plants x 2 SNRs x 4 seeds x 2 N x 4 methods x (6 or 7 parameters).
-    assert_eq!(one.rows.len(), 2 * 4 * 2 * 4 * (6 + 7));
+    // 2 plants x 2 SNRs x 4 seeds x 2 N x 5 methods x (6 or 7 parameters).
+    assert_eq!(one.rows.len(), 2 * 4 * 2 * 5 * (6 + 7));
     assert_eq!(one.groups.len(), 4);
     assert_eq!(one.group("second-order-b", 20.0).unwrap().names.len(), 7);
 }
