@@ -373,7 +373,7 @@ impl Refined {
 /// The on-line estimator of the FMU and of `identify mrgia`: plain MRGIA, or with `refine`, [`Refined`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum OnlineEstimator {
-    Plain(Mrgia),
+    Plain(Box<Mrgia>),
     Refined(Box<Refined>),
 }
 
@@ -382,7 +382,7 @@ impl OnlineEstimator {
         Ok(if refine {
             Self::Refined(Box::new(Refined::new(cfg)?))
         } else {
-            Self::Plain(Mrgia::new(cfg)?)
+            Self::Plain(Box::new(Mrgia::new(cfg)?))
         })
     }
 
@@ -519,8 +519,8 @@ impl Recursion {
             return false;
         }
         let mut next = self.theta;
-        for i in 0..p {
-            next.v[i] += ppsi[i] / denom * e;
+        for (t, k) in next.v[..p].iter_mut().zip(&ppsi[..p]) {
+            *t += k / denom * e;
         }
         let mut pn = self.p;
         for i in 0..p {
