@@ -5,7 +5,7 @@
 //! y_hat(k), e(k) and Phi(k). One sample per communication step: a step reaching a second instant would
 //! feed the pair held over the step as a second sample, so the layer cuts it at the first (fmi2Discard).
 //!
-//! `refine` selects [`Refined`] (MRGIA for a warm-up, then the recursive output-error estimator) instead of
+//! `refine` selects [`crate::identify::oe::online::Refined`] (MRGIA for a warm-up, then the recursive output-error estimator) instead of
 //! plain MRGIA; the `*_se` outputs are its standard errors (0 without refine, during the warm-up and beyond
 //! na/nb).
 
