@@ -276,12 +276,12 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
             "samples": samples,
             "updates": updates,
             "setting": setting,
-            "refine": args.refine,
             "config": cfg,
             "file": args.file.display().to_string(),
         });
         let mut out = out;
         if args.refine {
+            out["refine"] = json!(true);
             // As the FMU's *_se outputs: 0 while unknown (during the warm-up).
             let se: Vec<f64> = (0..cfg.n_params()).map(|i| est.std_err_at(i)).collect();
             out["std_err"] = serde_json::to_value(StdErr::from_flat(cfg.na, cfg.nb, &se))?;
