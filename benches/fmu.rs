@@ -9,6 +9,8 @@
 //! - baseline: the same work in-process without FMI, `Plant::advance` then `Mrgia::update` on the library;
 //! - plant FMU alone: set u, doStep, get y;
 //! - estimator FMU alone: set u and y (a recorded paper-example output), doStep, get the six estimates;
+//! - the same with `refine = true`, getting the six estimates and their six standard errors (the instance runs
+//!   on over the iterations, so this is the recursion's steady state after its start in the first);
 //! - the pair: plant get y(k), set u(k); estimator set u(k), y(k); both doStep; estimator get the six
 //!   estimates.
 //!
@@ -61,9 +63,15 @@ struct Slave {
 
 impl Slave {
     fn new(import: &Fmi2Import, name: &str) -> Self {
+        Self::with(import, name, |_| {})
+    }
+
+    /// With `set` applied to the parameters before initialisation.
+    fn with(import: &Fmi2Import, name: &str, set: impl FnOnce(&mut InstanceCS)) -> Self {
         let mut inst = import
             .instantiate_cs(name, false, false)
             .expect("instantiate");
+        set(&mut inst);
         inst.setup_experiment(None, 0.0, None).expect("setup");
         inst.enter_initialization_mode().expect("init");
         inst.exit_initialization_mode().expect("init");
@@ -146,6 +154,36 @@ fn fmu_step(c: &mut Criterion) {
             out[0]
         })
     });
+
+    let refine = vr(&est_import, "refine");
+    let se_outs: Vec<u32> = ["a1", "a2", "b0", "m2", "c1", "c2"]
+        .iter()
+        .map(|n| vr(&est_import, n))
+        .chain(
+            ["a1_se", "a2_se", "b0_se", "m2_se", "c1_se", "c2_se"]
+                .iter()
+                .map(|n| vr(&est_import, n)),
+        )
+        .collect();
+    let mut est = Slave::with(&est_import, "estimator-refine", |i| {
+        i.set_boolean(&[refine], &[1]).expect("set refine");
+    });
+    g.bench_function(
+        "estimator FMU, refine: set u y, doStep, get 6 estimates and 6 standard errors",
+        |b| {
+            b.iter(|| {
+                let mut out = [0.0; 12];
+                for k in 0..STEPS {
+                    est.inst
+                        .set_real(&[eu, ey], &[black_box(u[k]), y[k]])
+                        .unwrap();
+                    est.step();
+                    est.inst.get_real(&se_outs, &mut out).unwrap();
+                }
+                out[0]
+            })
+        },
+    );
 
     let mut plant = Slave::new(&plant_import, "plant2");
     let mut est = Slave::new(&est_import, "estimator2");

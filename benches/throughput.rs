@@ -5,6 +5,7 @@
 
 use backlash::identify::frequency::{FrequencyOptions, SineRecord, estimate};
 use backlash::identify::mrgia::{Mrgia, MrgiaConfig, paper_input};
+use backlash::identify::oe::online::Refined;
 use backlash::plant::{
     BacklashParams, ContinuousLinear, Plant, PlantParams, PolyBacklash, PolyBacklashParams,
     TransferFunction,
@@ -102,6 +103,25 @@ fn mrgia(c: &mut Criterion) {
         g.bench_function(label, |b| {
             b.iter_batched(
                 || Mrgia::new(MrgiaConfig::paper(na, nb, 1)).unwrap(),
+                |mut m| {
+                    for k in 0..N {
+                        m.update(black_box(u[k]), black_box(y[k]));
+                    }
+                    m.samples()
+                },
+                BatchSize::SmallInput,
+            )
+        });
+    }
+    // The refine setting over the same record: 500 samples of plain MRGIA, the start (an output-error fit of
+    // them), then the recursion; the average per sample includes the start.
+    for (label, na, nb) in [
+        ("refine na=2 nb=0 (paper)", 2, 0),
+        ("refine na=4 nb=4", 4, 4),
+    ] {
+        g.bench_function(label, |b| {
+            b.iter_batched(
+                || Refined::new(MrgiaConfig::paper(na, nb, 1)).unwrap(),
                 |mut m| {
                     for k in 0..N {
                         m.update(black_box(u[k]), black_box(y[k]));

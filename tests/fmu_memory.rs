@@ -168,7 +168,18 @@ impl Input {
 
 #[test]
 fn pair_steps_allocate_nothing_and_free_everything() {
-    let n = steps();
+    pair_run(false, steps());
+}
+
+/// The same with the estimator's `refine` setting (its start, an output-error fit of the first 500 samples,
+/// allocates once, within the first 1000 steps): a fifth of the steps, as a refine step costs several plain
+/// ones.
+#[test]
+fn refine_pair_steps_allocate_nothing_and_free_everything() {
+    pair_run(true, steps() / 5);
+}
+
+fn pair_run(refine: bool, n: u64) {
     let warm_up = 1000;
     let pv = &backlash_plant::VARIABLES;
     let ev = &mrgia_estimator::VARIABLES;
@@ -181,10 +192,13 @@ fn pair_steps_allocate_nothing_and_free_everything() {
         vr(pv, "noise_seed"),
     );
     let (eu, ey) = (vr(ev, "u"), vr(ev, "y"));
-    let real_outs: Vec<u32> = ["a1", "a2", "b0", "m2", "c1", "c2", "y_hat", "e"]
-        .iter()
-        .map(|name| vr(ev, name))
-        .collect();
+    let real_outs: Vec<u32> = [
+        "a1", "a2", "b0", "m2", "c1", "c2", "y_hat", "e", "a1_se", "a2_se", "b0_se", "m2_se",
+        "c1_se", "c2_se",
+    ]
+    .iter()
+    .map(|name| vr(ev, name))
+    .collect();
     let updating_vr = vr(ev, "updating");
 
     let before = counts();
@@ -195,13 +209,15 @@ fn pair_steps_allocate_nothing_and_free_everything() {
         // Noise on: the plant's random generator runs every step too.
         assert_eq!(fmi2SetReal(plant, &noise_std, 1, &0.01), OK);
         assert_eq!(fmi2SetInteger(plant, &noise_seed, 1, &3), OK);
+        let on = if refine { FMI2_TRUE } else { FMI2_FALSE };
+        assert_eq!(fmi2SetBoolean(est, &vr(ev, "refine"), 1, &on), OK);
     }
     initialise(plant);
     initialise(est);
 
     let mut input = Input(0x9E37_79B9_7F4A_7C15);
     let mut plant_out = [0.0; 3];
-    let mut est_out = [0.0; 8];
+    let mut est_out = [0.0; 14];
     let mut updating: Fmi2Boolean = FMI2_FALSE;
     let mut updates = 0u64;
     let mut at_warm_up = Counts::default();
@@ -226,7 +242,7 @@ fn pair_steps_allocate_nothing_and_free_everything() {
             assert_eq!(fmi2DoStep(plant, t, 1.0, FMI2_TRUE), OK);
             assert_eq!(fmi2DoStep(est, t, 1.0, FMI2_TRUE), OK);
             assert_eq!(
-                fmi2GetReal(est, real_outs.as_ptr(), 8, est_out.as_mut_ptr()),
+                fmi2GetReal(est, real_outs.as_ptr(), 14, est_out.as_mut_ptr()),
                 OK
             );
             assert_eq!(fmi2GetBoolean(est, &updating_vr, 1, &mut updating), OK);
@@ -262,6 +278,14 @@ fn pair_steps_allocate_nothing_and_free_everything() {
     for (got, want) in est_out[..6].iter().zip(truth) {
         assert!((got - want).abs() < 0.05, "estimate {est_out:?}");
     }
+    // Standard errors: known (positive) with refine, 0 without.
+    assert!(
+        est_out[8..]
+            .iter()
+            .all(|&s| if refine { s > 0.0 } else { s == 0.0 }),
+        "standard errors {:?}",
+        &est_out[8..]
+    );
     // Constant memory: nothing allocated (or freed) per step after the warm-up, and all given back at the end.
     assert_eq!(at_end.allocs, at_warm_up.allocs, "allocations per step");
     assert_eq!(at_end.frees, at_warm_up.frees, "frees per step");

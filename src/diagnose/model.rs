@@ -694,21 +694,8 @@ impl EffectModel {
     }
 }
 
-/// Whether `1 + a_1 z^-1 + ... + a_n z^-n` has all its roots strictly inside the unit circle (Schur-Cohn
-/// step-down: every reflection coefficient below 1 in magnitude). An unstable linear block can stay bounded
-/// over a fit window and explode right after it, so the fit refuses it.
-pub fn is_stable(a: &[f64]) -> bool {
-    let mut c: Vec<f64> = a.to_vec();
-    while let Some(&k) = c.last() {
-        if k.is_nan() || k.abs() >= 1.0 {
-            return false;
-        }
-        let n = c.len();
-        let d = 1.0 - k * k;
-        c = (0..n - 1).map(|i| (c[i] - k * c[n - 2 - i]) / d).collect();
-    }
-    true
-}
+/// The stability test of the linear block (shared with the recursive estimator).
+pub use crate::plant::linear::is_stable;
 
 #[cfg(test)]
 mod tests {

@@ -4,11 +4,16 @@
 //! t_{k+1} the estimator processes it, so from t_{k+1} on the outputs are the estimate after sample k,
 //! y_hat(k), e(k) and Phi(k). One sample per communication step: a step reaching a second instant would
 //! feed the pair held over the step as a second sample, so the layer cuts it at the first (fmi2Discard).
+//!
+//! `refine` selects [`crate::identify::oe::online::Refined`] (MRGIA for a warm-up, then the recursive output-error estimator) instead of
+//! plain MRGIA; the `*_se` outputs are its standard errors (0 without refine, during the warm-up and beyond
+//! na/nb).
 
 use super::mrgia_estimator::{self as md, Var};
 use crate::fmi2::Model;
 use crate::fmi2::vars::{Value, VarInfo};
-use crate::identify::mrgia::{Mrgia, MrgiaConfig, StepResult};
+use crate::identify::mrgia::{MrgiaConfig, StepResult};
+use crate::identify::oe::online::OnlineEstimator as Running;
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -18,11 +23,12 @@ pub struct EstimatorFmu {
     nb: i32,
     delay: i32,
     recommended: bool,
+    refine: bool,
     /// The settings as set; used when `recommended` is false.
     settings: MrgiaConfig,
     u: f64,
     y: f64,
-    est: Option<Mrgia>,
+    est: Option<Running>,
 }
 
 impl EstimatorFmu {
@@ -56,13 +62,13 @@ impl EstimatorFmu {
     }
 
     /// The estimator's current estimate as theta-like outputs; before initialisation, theta(0).
-    fn estimator(&self) -> Option<std::borrow::Cow<'_, Mrgia>> {
+    fn estimator(&self) -> Option<std::borrow::Cow<'_, Running>> {
         match &self.est {
             Some(e) => Some(std::borrow::Cow::Borrowed(e)),
             None => self
                 .config()
                 .ok()
-                .and_then(|c| Mrgia::new(c).ok())
+                .and_then(|c| Running::new(c, self.refine).map_err(|e| e.to_string()).ok())
                 .map(std::borrow::Cow::Owned),
         }
     }
@@ -87,6 +93,7 @@ impl Model for EstimatorFmu {
             nb: 0,
             delay: 1,
             recommended: false,
+            refine: false,
             settings: MrgiaConfig::paper(2, 0, 1),
             u: 0.0,
             y: 0.0,
@@ -97,21 +104,24 @@ impl Model for EstimatorFmu {
     fn get(&self, var: Var) -> Value {
         let s = &self.settings;
         let r = Value::Real;
-        // Estimates straight from theta = [a1..a_na, b0..b_nb, m2 - 1, c1, c2] (no allocation per get: the
-        // layer reads every output after each step).
+        // Estimates straight from the estimator's vectors (no allocation per get: the layer reads every
+        // output after each step).
         let est = self.estimator();
-        let theta = |i: Option<usize>| -> f64 {
+        let (na, nb) = (self.na.max(0) as usize, self.nb.max(0) as usize);
+        let at = |f: fn(&Running, usize) -> f64, i: Option<usize>| -> f64 {
             match (&est, i) {
-                (Some(e), Some(i)) => e.theta()[i],
+                (Some(e), Some(i)) => f(e, i),
                 _ => 0.0,
             }
         };
-        let (na, nb) = (self.na.max(0) as usize, self.nb.max(0) as usize);
-        let a = |i: usize| r(theta((i < na).then_some(i)));
-        let b = |j: usize| r(theta((j <= nb).then_some(na + j)));
-        let tail = |off: usize| theta(Some(na + nb + 1 + off));
+        let a = |i: usize| r(at(Running::value, (i < na).then_some(i)));
+        let b = |j: usize| r(at(Running::value, (j <= nb).then_some(na + j)));
+        let tail = |off: usize| r(at(Running::value, Some(na + nb + 1 + off)));
+        let a_se = |i: usize| r(at(Running::std_err_at, (i < na).then_some(i)));
+        let b_se = |j: usize| r(at(Running::std_err_at, (j <= nb).then_some(na + j)));
+        let tail_se = |off: usize| r(at(Running::std_err_at, Some(na + nb + 1 + off)));
         let last = || {
-            self.est.as_ref().map(Mrgia::last).unwrap_or(StepResult {
+            self.est.as_ref().map(Running::last).unwrap_or(StepResult {
                 y_hat: 0.0,
                 e: 0.0,
                 updating: false,
@@ -140,9 +150,22 @@ impl Model for EstimatorFmu {
             Var::B2 => b(2),
             Var::B3 => b(3),
             Var::B4 => b(4),
-            Var::M2 => r(if est.is_some() { 1.0 + tail(0) } else { 0.0 }),
-            Var::C1 => r(tail(1)),
-            Var::C2 => r(tail(2)),
+            Var::M2 => tail(0),
+            Var::C1 => tail(1),
+            Var::C2 => tail(2),
+            Var::Refine => Value::Boolean(self.refine),
+            Var::A1Se => a_se(0),
+            Var::A2Se => a_se(1),
+            Var::A3Se => a_se(2),
+            Var::A4Se => a_se(3),
+            Var::B0Se => b_se(0),
+            Var::B1Se => b_se(1),
+            Var::B2Se => b_se(2),
+            Var::B3Se => b_se(3),
+            Var::B4Se => b_se(4),
+            Var::M2Se => tail_se(0),
+            Var::C1Se => tail_se(1),
+            Var::C2Se => tail_se(2),
             Var::YHat => r(last().y_hat),
             Var::E => r(last().e),
             Var::Updating => Value::Boolean(last().updating),
@@ -160,6 +183,7 @@ impl Model for EstimatorFmu {
             Var::Nb => self.nb = value.as_integer(),
             Var::Delay => self.delay = value.as_integer(),
             Var::Recommended => self.recommended = value.as_bool(),
+            Var::Refine => self.refine = value.as_bool(),
             Var::P0 => s.p0 = x,
             Var::RhoExp => s.rho_exp = x,
             Var::RhoMin => s.rho_min = x,
@@ -181,13 +205,25 @@ impl Model for EstimatorFmu {
             | Var::C2
             | Var::YHat
             | Var::E
-            | Var::Updating => {}
+            | Var::Updating
+            | Var::A1Se
+            | Var::A2Se
+            | Var::A3Se
+            | Var::A4Se
+            | Var::B0Se
+            | Var::B1Se
+            | Var::B2Se
+            | Var::B3Se
+            | Var::B4Se
+            | Var::M2Se
+            | Var::C1Se
+            | Var::C2Se => {}
         }
     }
 
     fn exit_initialization(&mut self) -> Result<(), String> {
         let cfg = self.config()?;
-        self.est = Some(Mrgia::new(cfg).map_err(|e| e.to_string())?);
+        self.est = Some(Running::new(cfg, self.refine).map_err(|e| e.to_string())?);
         Ok(())
     }
 
@@ -204,6 +240,10 @@ impl Model for EstimatorFmu {
         match &self.est {
             None => Ok(()),
             Some(e) => {
+                e.check()?;
+                if e.refining_kind() != self.refine {
+                    return Err("the estimator's kind differs from the parameter refine".into());
+                }
                 let c = e.config();
                 c.validate().map_err(|e| e.to_string())?;
                 if (c.na, c.nb, c.delay)

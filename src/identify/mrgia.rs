@@ -109,7 +109,7 @@
 mod rls;
 mod study;
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 
 pub use study::{
     PAPER_INPUT_VARIANCE, max_rel_error, paper_input, paper_study, paper_study_with, summary,

@@ -129,6 +129,7 @@
 //! - Noise-free data: the residual is zero up to rounding, so the standard errors are (near) zero.
 //! - Records shorter than p + 1 samples, mismatched lengths and non-finite samples are refused.
 
+pub mod online;
 mod study;
 #[cfg(test)]
 mod tests;
@@ -336,7 +337,8 @@ pub struct StdErr {
 }
 
 impl StdErr {
-    fn from_flat(na: usize, nb: usize, v: &[f64]) -> Self {
+    /// From the standard deviations in theta order (`na + nb + 4` entries).
+    pub fn from_flat(na: usize, nb: usize, v: &[f64]) -> Self {
         let p = na + nb + 4;
         Self {
             a: v[..na].to_vec(),
@@ -440,7 +442,7 @@ pub struct OeFit {
 }
 
 /// Internal parameter vector with its structure.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 struct Theta {
     v: [f64; MAX_P],
     na: usize,
@@ -479,57 +481,77 @@ impl Theta {
 /// Samples per mode: up, down, held.
 type Modes = [usize; 3];
 
-/// Simulate the model over `u`, calling `visit(k, w^(k), dw^(k)/dtheta)` for every sample (the sensitivity
-/// slice has p entries; with `SENS = false` it is all zeros and not computed). No allocation.
-fn propagate<const SENS: bool>(
-    th: &Theta,
-    u: &[f64],
-    mut visit: impl FnMut(usize, f64, &[f64]),
-) -> Modes {
-    let (na, nb, d, p) = (th.na, th.nb, th.delay, th.p());
-    let nl = na + nb + 1;
-    let (im2, ic1, ic2) = (nl, nl + 1, nl + 2);
-    let v = &th.v;
-    let (m2, c1, c2) = (v[im2], v[ic1], v[ic2]);
-    // Ring of x^(k-1..k-4) and their sensitivities: slot (pos + i) & 3 holds lag i + 1.
-    let mut xh = [0.0f64; MAX_ORDER];
-    let mut dxh = [[0.0f64; MAX_P]; MAX_ORDER];
-    let mut pos = 0usize;
-    let mut w_prev = 0.0;
-    let mut dw = [0.0f64; MAX_P];
-    let mut modes = [0usize; 3];
-    for k in 0..u.len() {
+/// The state of the simulated model between samples: x^(k-1..k-4) with their sensitivities, w^(k-1) and
+/// dw^(k-1)/dtheta. [`propagate`] runs it over a record; the recursive estimator of [`online`] steps it one
+/// sample at a time with a theta that changes between samples.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+struct SimState {
+    /// Ring of x^(k-1..k-4): slot `(pos + i) & 3` holds lag i + 1.
+    xh: [f64; MAX_ORDER],
+    /// The sensitivities of `xh`, same slots.
+    dxh: [[f64; MAX_P]; MAX_ORDER],
+    pos: usize,
+    w_prev: f64,
+    /// dw^(k-1)/dtheta (kept through held samples).
+    dw: [f64; MAX_P],
+}
+
+/// Index of the mode a sample took: up, down, held (the order of [`Modes`]).
+const UP: usize = 0;
+const DOWN: usize = 1;
+const HELD: usize = 2;
+
+impl SimState {
+    /// All signals zero (before the first sample, as in the plant).
+    const ZERO: Self = Self {
+        xh: [0.0; MAX_ORDER],
+        dxh: [[0.0; MAX_P]; MAX_ORDER],
+        pos: 0,
+        w_prev: 0.0,
+        dw: [0.0; MAX_P],
+    };
+
+    /// Sample k at `th`, with `u_lag(j)` = u(k - d - j) (0 before the record): returns w^(k) and its mode
+    /// ([`UP`], [`DOWN`], [`HELD`]); with `SENS` the sensitivities dw^(k)/dtheta are left in `self.dw`
+    /// (otherwise they stay zero). No allocation.
+    #[inline(always)]
+    fn step<const SENS: bool>(&mut self, th: &Theta, u_lag: impl Fn(usize) -> f64) -> (f64, usize) {
+        let (na, nb) = (th.na, th.nb);
+        let nl = na + nb + 1;
+        let (im2, ic1, ic2) = (nl, nl + 1, nl + 2);
+        let v = &th.v;
+        let (m2, c1, c2) = (v[im2], v[ic1], v[ic2]);
         let mut x = 0.0;
         let mut dx = [0.0f64; MAX_P];
         for i in 0..na {
-            let s = (pos + i) & (MAX_ORDER - 1);
-            let (ai, xp) = (v[i], xh[s]);
+            let s = (self.pos + i) & (MAX_ORDER - 1);
+            let (ai, xp) = (v[i], self.xh[s]);
             x -= ai * xp;
             if SENS {
                 dx[i] -= xp;
-                for (q, dh) in dx[..nl].iter_mut().zip(&dxh[s][..nl]) {
+                for (q, dh) in dx[..nl].iter_mut().zip(&self.dxh[s][..nl]) {
                     *q -= ai * dh;
                 }
             }
         }
         for j in 0..=nb {
-            let uu = if k >= d + j { u[k - d - j] } else { 0.0 };
+            let uu = u_lag(j);
             x += v[na + j] * uu;
             if SENS {
                 dx[na + j] += uu;
             }
         }
-        let w = if x > w_prev + c1 {
-            modes[0] += 1;
+        let w_prev = self.w_prev;
+        let dw = &mut self.dw;
+        let (w, mode) = if x > w_prev + c1 {
             if SENS {
                 dw[..nl].copy_from_slice(&dx[..nl]);
                 dw[im2] = 0.0;
                 dw[ic1] = -1.0;
                 dw[ic2] = 0.0;
             }
-            x - c1
+            (x - c1, UP)
         } else if x < w_prev / m2 - c2 {
-            modes[1] += 1;
             if SENS {
                 for (o, s) in dw[..nl].iter_mut().zip(&dx[..nl]) {
                     *o = m2 * s;
@@ -538,20 +560,46 @@ fn propagate<const SENS: bool>(
                 dw[ic1] = 0.0;
                 dw[ic2] = m2;
             }
-            m2 * (x + c2)
+            (m2 * (x + c2), DOWN)
         } else {
-            modes[2] += 1;
-            w_prev
+            (w_prev, HELD)
         };
-        pos = (pos + MAX_ORDER - 1) & (MAX_ORDER - 1);
-        xh[pos] = x;
+        self.pos = (self.pos + MAX_ORDER - 1) & (MAX_ORDER - 1);
+        self.xh[self.pos] = x;
         if SENS {
-            dxh[pos] = dx;
+            self.dxh[self.pos] = dx;
         }
-        w_prev = w;
-        visit(k, w, &dw[..p]);
+        self.w_prev = w;
+        (w, mode)
     }
-    modes
+}
+
+/// Simulate the model over `u`, calling `visit(k, w^(k), dw^(k)/dtheta)` for every sample (the sensitivity
+/// slice has p entries; with `SENS = false` it is all zeros and not computed). No allocation. Returns the
+/// samples per mode and the state after the last sample.
+fn propagate_state<const SENS: bool>(
+    th: &Theta,
+    u: &[f64],
+    mut visit: impl FnMut(usize, f64, &[f64]),
+) -> (Modes, SimState) {
+    let (d, p) = (th.delay, th.p());
+    let mut s = SimState::ZERO;
+    let mut modes = [0usize; 3];
+    for k in 0..u.len() {
+        let (w, mode) = s.step::<SENS>(th, |j| if k >= d + j { u[k - d - j] } else { 0.0 });
+        modes[mode] += 1;
+        visit(k, w, &s.dw[..p]);
+    }
+    (modes, s)
+}
+
+/// [`propagate_state`] without the final state.
+fn propagate<const SENS: bool>(
+    th: &Theta,
+    u: &[f64],
+    visit: impl FnMut(usize, f64, &[f64]),
+) -> Modes {
+    propagate_state::<SENS>(th, u, visit).0
 }
 
 const _: () = assert!(MAX_ORDER.is_power_of_two());

@@ -8,6 +8,32 @@ pub const MAX_ORDER: usize = 4;
 /// Largest delay in samples. Bounded so that the history a plant or estimator keeps has a known size.
 pub const MAX_DELAY: usize = 64;
 
+/// Whether `1 + a_1 z^-1 + ... + a_n z^-n` has all its roots strictly inside the unit circle (Schur-Cohn
+/// step-down: every reflection coefficient below 1 in magnitude). An unstable linear block can stay bounded
+/// over a fit window and explode right after it, so the fits refuse it. No allocation (the recursive
+/// estimator calls it every sample); polynomials longer than [`MAX_ORDER`], which no model here has, are
+/// answered `false` (not checked, so not accepted).
+pub fn is_stable(a: &[f64]) -> bool {
+    if a.len() > MAX_ORDER {
+        return false;
+    }
+    let mut c = [0.0f64; MAX_ORDER];
+    c[..a.len()].copy_from_slice(a);
+    let mut tmp = [0.0f64; MAX_ORDER];
+    for n in (1..=a.len()).rev() {
+        let k = c[n - 1];
+        if k.is_nan() || k.abs() >= 1.0 {
+            return false;
+        }
+        let d = 1.0 - k * k;
+        for i in 0..n - 1 {
+            tmp[i] = (c[i] - k * c[n - 2 - i]) / d;
+        }
+        c[..n - 1].copy_from_slice(&tmp[..n - 1]);
+    }
+    true
+}
+
 /// Orders and coefficients of the ARX block.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ArxParams {

@@ -28,6 +28,7 @@ from fmpy.fmi3 import FMU3Slave
 from fmpy.model_description import CoSimulation, DefaultExperiment, ModelDescription, ModelVariable, Unknown
 
 ESTIMATE_NAMES = ("a1", "a2", "a3", "a4", "b0", "b1", "b2", "b3", "b4", "m2", "c1", "c2")
+STD_ERR_NAMES = tuple(f"{n}_se" for n in ESTIMATE_NAMES)
 CHECKED = ("a1", "a2", "b0", "m2", "c1", "c2")
 PAPER_TRUTH = {"a1": 0.45, "a2": 0.55, "b0": 0.8, "m2": 1.5, "c1": 0.5, "c2": 1.0}
 PAPER_INPUT_VARIANCE = 1.93
@@ -171,6 +172,7 @@ def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None
       'samples'   the sample counts (k + 1) at which the estimator outputs were recorded: every
                   `record_every` samples (the last sample always included), or exactly `checkpoints`
       'estimates' rows [a1, a2, a3, a4, b0..b4, m2, c1, c2] after that many samples
+      'std_err'   rows [a1_se, .., c2_se] at the same points (the `refine` setting's standard errors)
       'updating', 'y_hat', 'e'   the estimator's other outputs at the same points
       'names'     the column names of 'estimates'
     `plant_events` maps a sample index k to {name: value} set on the plant before it reads u(k) (tunable
@@ -199,7 +201,7 @@ def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None
         p, e = plant.fmu, est.fmu
         vr_py, vr_pu = [plant.vr("y")], [plant.vr("u")]
         vr_eu_ey = [est.vr("u"), est.vr("y")]
-        vr_out = [est.vr(k) for k in ESTIMATE_NAMES] + [est.vr("y_hat"), est.vr("e")]
+        vr_out = [est.vr(k) for k in ESTIMATE_NAMES + STD_ERR_NAMES] + [est.vr("y_hat"), est.vr("e")]
         vr_upd = [est.vr("updating")]
 
         y = np.empty(n)
@@ -221,11 +223,13 @@ def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None
                 upd.append(e.getBoolean(vr_upd)[0])
         for s in (p, e):
             s.terminate()
-        rows = np.array(rows, dtype=float).reshape(len(rows), len(ESTIMATE_NAMES) + 2)
+        m = len(ESTIMATE_NAMES)
+        rows = np.array(rows, dtype=float).reshape(len(rows), 2 * m + 2)
         return {
             "y": y,
             "samples": np.array(want, dtype=int),
-            "estimates": rows[:, : len(ESTIMATE_NAMES)],
+            "estimates": rows[:, :m],
+            "std_err": rows[:, m : 2 * m],
             "y_hat": rows[:, -2],
             "e": rows[:, -1],
             "updating": np.array(upd, dtype=bool),

@@ -59,8 +59,10 @@ def test_defaults_are_the_papers_settings(estimator_fmu):
     assert float(start["rho_min"]) == 0.0
     assert float(start["Sigma0"]) == 1.0
     assert start["recommended"] in ("false", False)
+    assert start["refine"] in ("false", False)
     outputs = {v.name for v in md.modelVariables if v.causality == "output"}
-    assert outputs == {"a1", "a2", "a3", "a4", "b0", "b1", "b2", "b3", "b4", "m2", "c1", "c2", "y_hat", "e", "updating"}
+    estimates = {"a1", "a2", "a3", "a4", "b0", "b1", "b2", "b3", "b4", "m2", "c1", "c2"}
+    assert outputs == estimates | {f"{n}_se" for n in estimates} | {"y_hat", "e", "updating"}
 
 
 def test_fmu_state_mid_run_is_bit_identical(estimator_fmu, unzipped):

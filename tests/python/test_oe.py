@@ -179,7 +179,7 @@ def test_identify_oe_is_fast(cli, paper_fit):
 
 def test_study_command_writes_its_files(cli, tmp_path):
     out = json.loads(run(cli, "study", "--seeds", 3, "--ns", "300,1000", "--json", "--out", tmp_path).stdout)
-    assert {s["method"] for s in out["stats"]} == {"mrgia-paper", "mrgia-recommended", "oe", "crb"}
+    assert {s["method"] for s in out["stats"]} == {"mrgia-paper", "mrgia-recommended", "refine", "oe", "crb"}
     assert out["names"] == NAMES
     for name in ["oe_study.png", "oe_study.csv", "oe_study.json"]:
         assert (tmp_path / name).stat().st_size > 100

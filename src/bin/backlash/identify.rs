@@ -1,7 +1,9 @@
 //! `backlash identify mrgia`: the recursive MRGIA estimator of paper 000 on a data file.
 
 use anyhow::{Context, Result};
-use backlash::identify::mrgia::{Mrgia, MrgiaConfig, StepResult};
+use backlash::identify::mrgia::{MrgiaConfig, StepResult};
+use backlash::identify::oe::StdErr;
+use backlash::identify::oe::online::OnlineEstimator;
 use backlash::io::{AtomicFile, ReadAhead, RowReader};
 use backlash::report::plot::{Axes, Series, line_plot};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -28,6 +30,10 @@ pub struct MrgiaArgs {
     /// Use the project's recommended on-line setting instead of the paper's (see docs/INTERFACE.md).
     #[arg(long)]
     pub recommended: bool,
+    /// Refine on-line to the output-error accuracy after a warm-up, with standard errors (MrgiaEstimator.fmu's
+    /// `refine`; see docs/INTERFACE.md). `--rho-min` sets its forgetting.
+    #[arg(long)]
+    pub refine: bool,
     /// P(0) = P0 I (paper: 1e6).
     #[arg(long, allow_negative_numbers = true)]
     pub p0: Option<f64>,
@@ -88,7 +94,7 @@ fn names(cfg: &MrgiaConfig) -> Vec<String> {
 }
 
 /// The estimate as one vector in the order of [`names`].
-fn flat(est: &Mrgia) -> Vec<f64> {
+fn flat(est: &OnlineEstimator) -> Vec<f64> {
     let e = est.estimate();
     e.a.iter()
         .chain(&e.b)
@@ -171,7 +177,7 @@ impl Decimated {
 /// (the trace is written as it goes, the plot keeps at most [`PLOT_POINTS`] points).
 pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
     let cfg = args.config()?;
-    let mut est = Mrgia::new(cfg)?;
+    let mut est = OnlineEstimator::new(cfg, args.refine)?;
     let rows = RowReader::open(&args.file, &["time", "u", "y"])?;
     let labels = names(&cfg);
     let mut trace = match &args.trace {
@@ -231,10 +237,11 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
             .with_context(|| format!("{}: cannot write the trace", path.display()))?;
     }
     let e = est.estimate();
-    let setting = if args.recommended {
-        "recommended"
-    } else {
-        "paper"
+    let setting = match (args.recommended, args.refine) {
+        (true, false) => "recommended",
+        (false, false) => "paper",
+        (true, true) => "recommended, refine",
+        (false, true) => "paper, refine",
     };
 
     if let (Some(path), Some(mut p)) = (&args.plot, plot) {
@@ -272,14 +279,30 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
             "config": cfg,
             "file": args.file.display().to_string(),
         });
+        let mut out = out;
+        if args.refine {
+            out["refine"] = json!(true);
+            // As the FMU's *_se outputs: 0 while unknown (during the warm-up).
+            let se: Vec<f64> = (0..cfg.n_params()).map(|i| est.std_err_at(i)).collect();
+            out["std_err"] = serde_json::to_value(StdErr::from_flat(cfg.na, cfg.nb, &se))?;
+        }
         println!("{out}");
     } else {
         println!(
             "MRGIA ({setting} setting) on {}: {samples} samples, {updates} updates",
             args.file.display(),
         );
-        for (name, v) in labels.iter().zip(flat(&est)) {
-            println!("  {name:>3} = {v:.6}");
+        for (i, (name, v)) in labels.iter().zip(flat(&est)).enumerate() {
+            if args.refine {
+                println!("  {name:>3} = {v:.6}  (std err {:.2e})", est.std_err_at(i));
+            } else {
+                println!("  {name:>3} = {v:.6}");
+            }
+        }
+        if args.refine && est.std_err().is_none() {
+            println!(
+                "  (std err 0: not known yet, the warm-up of the refine setting was not completed)"
+            );
         }
         println!("  (m1 = 1 is the normalisation)");
     }

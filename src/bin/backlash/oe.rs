@@ -416,12 +416,13 @@ pub struct StudyArgs {
     /// (`backlash study --list-plants` describes them).
     #[arg(long, value_delimiter = ',', default_value = "paper")]
     pub plants: Vec<String>,
-    /// Methods to report, comma-separated: mrgia-paper, mrgia-recommended, oe, crb (default: all; leaving
-    /// out oe and crb skips their computation).
+    /// Methods to report, comma-separated: mrgia-paper, mrgia-recommended, refine (MRGIA with the refine
+    /// setting), oe, crb (default: all; leaving out refine, oe and crb skips their computation; crb also gives
+    /// every estimator's worst-parameter error in CRB std units).
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "mrgia-paper,mrgia-recommended,oe,crb"
+        default_value = "mrgia-paper,mrgia-recommended,refine,oe,crb"
     )]
     pub methods: Vec<String>,
     /// Worker threads (default: all cores, or RAYON_NUM_THREADS).
@@ -564,24 +565,36 @@ pub fn run_study(args: &StudyArgs) -> Result<()> {
             for name in &g.names {
                 print!("{name:>11}");
             }
-            println!("  median max rel");
+            println!("  median max rel  worst/CRB: median, >10, >100, max");
             for m in oe::METHODS {
                 if let Some(s) = g.get(m, n) {
                     print!("  {m:<18}");
                     for v in &s.rmse {
                         print!("{v:>11.3e}");
                     }
-                    println!("  {:.3e}", s.median_max_rel);
+                    print!("  {:.3e}", s.median_max_rel);
+                    match s.crb_units {
+                        Some(c) => println!(
+                            "       {:.2}, {:.1}%, {:.1}%, {:.3}",
+                            c.median,
+                            100.0 * c.share_over_10,
+                            100.0 * c.share_over_100,
+                            c.max
+                        ),
+                        None => println!(),
+                    }
                 }
             }
-            if let Some(s) = g.get("oe", n)
-                && let Some(c) = &s.coverage
-            {
-                print!("  {:<18}", "oe 95% coverage");
-                for v in c {
-                    print!("{v:>11.2}");
+            for m in ["refine", "oe"] {
+                if let Some(s) = g.get(m, n)
+                    && let Some(c) = &s.coverage
+                {
+                    print!("  {:<18}", format!("{m} 95% coverage"));
+                    for v in c {
+                        print!("{v:>11.2}");
+                    }
+                    println!("  ({} failed)", s.failures);
                 }
-                println!("  ({} failed fits)", s.failures);
             }
         }
     }

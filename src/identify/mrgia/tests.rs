@@ -3,6 +3,7 @@
 
 use super::rls::{MAX_N, Rls};
 use super::*;
+use crate::identify::oe::online::OnlineEstimator;
 use crate::plant::{Arx, ArxParams, BacklashParams, Mode, Plant, PlantParams};
 use nalgebra::{DMatrix, SMatrix, SVector};
 use proptest::prelude::*;
@@ -676,7 +677,13 @@ proptest! {
 
 /// The paper plant with c1, c2 multiplied by `factor` from sample `k_switch` on (the state continues), plus
 /// white Gaussian noise of std `noise_std`; returns y.
-fn wear_data(u: &[f64], k_switch: usize, factor: f64, noise_std: f64, seed: u64) -> Vec<f64> {
+pub(crate) fn wear_data(
+    u: &[f64],
+    k_switch: usize,
+    factor: f64,
+    noise_std: f64,
+    seed: u64,
+) -> Vec<f64> {
     let mut arx = Arx::new(ArxParams::PAPER);
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xABCD);
     let mut w = 0.0;
@@ -698,8 +705,24 @@ fn wear_data(u: &[f64], k_switch: usize, factor: f64, noise_std: f64, seed: u64)
 /// Samples after `k_switch` from which both gap estimates stay within `tol` (relative) of `c1`, `c2` up to
 /// the end of the record (None: not settled by then).
 fn settle_time(cfg: MrgiaConfig, u: &[f64], y: &[f64], k_switch: usize, tol: f64) -> Option<usize> {
+    settle_time_of(
+        OnlineEstimator::new(cfg, false).unwrap(),
+        u,
+        y,
+        k_switch,
+        tol,
+    )
+}
+
+/// [`settle_time`] of any on-line estimator (plain or refined).
+pub(crate) fn settle_time_of(
+    mut est: OnlineEstimator,
+    u: &[f64],
+    y: &[f64],
+    k_switch: usize,
+    tol: f64,
+) -> Option<usize> {
     let (c1, c2) = (0.75, 1.5);
-    let mut est = Mrgia::new(cfg).unwrap();
     let mut last_bad = None;
     for k in 0..u.len() {
         est.update(u[k], y[k]);

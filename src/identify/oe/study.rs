@@ -1,11 +1,12 @@
-//! Monte Carlo study of the paper 000, section 4 example: MRGIA (paper and recommended settings), the
-//! output-error fit started from MRGIA, and the Cramer-Rao bound, against the record length N.
+//! Monte Carlo study of the paper 000, section 4 example: MRGIA (paper and recommended settings), MRGIA with
+//! `refine` (the on-line output-error estimator of [`super::online`], the FMU's default settings plus
+//! refine), the output-error fit started from MRGIA, and the Cramer-Rao bound, against the record length N.
 //!
 //! For each seed s: the input is [`paper_input`]`(max N, s)`, the plant [`PlantParams::PAPER`], the noise
 //! white Gaussian with standard deviation `std(w) / snr` (w the noise-free output over the longest record:
 //! the paper's "SNR 43" is the square root of the ratio of the output and noise variances) from seed
 //! `s + 0x5EED_0000_0000`. Every record of length N is the first N samples of that run. MRGIA runs once per
-//! setting and is read at each N; the OE fit runs on each prefix from the MRGIA estimates at that N (the
+//! setting (and refine) and is read at each N; the OE fit runs on each prefix from the MRGIA estimates at that N (the
 //! same starts as [`super::fit`]); the CRB is computed for each prefix at the truth with the true noise std.
 //!
 //! [`grid_study`] runs the same experiment over a grid of plants ([`PLANT_VARIANTS`]), SNRs and seeds, one
@@ -14,6 +15,7 @@
 //! its seed alone (same input and noise streams for every plant and SNR: common random numbers), and the
 //! cells are collected in grid order, so the result does not depend on the number of threads.
 
+use super::online::Refined;
 use super::{OeConfig, OeFit, crb, fit_from, param_names, theta_of};
 use crate::identify::mrgia::{Estimate, Mrgia, MrgiaConfig, paper_input};
 use crate::plant::{Plant, PlantParams};
@@ -53,7 +55,7 @@ impl StudyConfig {
 /// Statistics of one method at one N over the runs, per parameter in theta order (a1, a2, b0, m2, c1, c2).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MethodStats {
-    /// `mrgia-paper`, `mrgia-recommended`, `oe` or `crb`.
+    /// `mrgia-paper`, `mrgia-recommended`, `refine`, `oe` or `crb`.
     pub method: String,
     pub n: usize,
     /// Root mean square error over the runs; for `crb` the root mean CRB variance (the RMSE an efficient
@@ -63,14 +65,28 @@ pub struct MethodStats {
     pub bias: Vec<f64>,
     /// Median over runs of the largest relative error (for `crb`: of the largest relative CRB std).
     pub median_max_rel: f64,
-    /// `oe` only: fraction of runs whose interval estimate +/- 1.96 std_err covers the truth.
+    /// `oe` and `refine` only: fraction of runs whose interval estimate +/- 1.96 std_err covers the truth.
     pub coverage: Option<Vec<f64>>,
-    /// `oe` only: root mean square of the reported standard errors.
+    /// `oe` and `refine` only: root mean square of the reported standard errors.
     pub rms_std_err: Option<Vec<f64>>,
+    /// When the CRB was computed (method `crb` listed), for the estimators: each run's worst parameter error
+    /// in units of that parameter's CRB std, `max_i |error_i| / crb_std_i`; its median, the share of runs
+    /// above 10 and above 100, and its largest value.
+    #[serde(default)]
+    pub crb_units: Option<CrbUnits>,
     /// Runs whose method failed (excluded from the statistics).
     pub failures: usize,
     /// Runs included.
     pub runs: usize,
+}
+
+/// Statistics of the worst-parameter error in CRB std units over the runs (see [`MethodStats::crb_units`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CrbUnits {
+    pub median: f64,
+    pub share_over_10: f64,
+    pub share_over_100: f64,
+    pub max: f64,
 }
 
 /// Everything the study measured.
@@ -90,7 +106,7 @@ fn paper_name() -> String {
 }
 
 /// The method names, in plotting order.
-pub const METHODS: [&str; 4] = ["mrgia-paper", "mrgia-recommended", "oe", "crb"];
+pub const METHODS: [&str; 5] = ["mrgia-paper", "mrgia-recommended", "refine", "oe", "crb"];
 
 /// A named plant of a [`grid_study`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -220,8 +236,8 @@ pub struct GridConfig {
     pub snrs: Vec<f64>,
     /// Names of [`PLANT_VARIANTS`].
     pub plants: Vec<String>,
-    /// Methods to report, a subset of [`METHODS`] (the OE fit and the CRB are only computed when listed;
-    /// both MRGIA settings always run, they are the OE fit's starts).
+    /// Methods to report, a subset of [`METHODS`] (refine, the OE fit and the CRB are only computed when
+    /// listed; both MRGIA settings always run, they are the OE fit's starts).
     pub methods: Vec<String>,
 }
 
@@ -302,7 +318,7 @@ pub struct Row {
     pub truth: f64,
     /// None for `crb` and for a failed fit.
     pub estimate: Option<f64>,
-    /// `oe`: the fit's standard error; `crb`: the Cramer-Rao bound std; None otherwise.
+    /// `oe` and `refine`: the reported standard error; `crb`: the Cramer-Rao bound std; None otherwise.
     pub std_err: Option<f64>,
 }
 
@@ -335,12 +351,37 @@ struct Acc {
     max_rel: Vec<f64>,
     covered: Vec<Vec<bool>>,
     std_err: Vec<Vec<f64>>,
+    /// Per run: worst |error| / CRB std (runs with a CRB only).
+    crb_units: Vec<f64>,
     failures: usize,
 }
 
 impl Acc {
     fn push(&mut self, est: &[f64], truth: &[f64]) {
         self.push_err(est.iter().zip(truth).map(|(e, t)| e - t).collect(), truth);
+    }
+
+    /// A run's estimate with its standard errors: also the interval coverage.
+    fn push_with_se(&mut self, est: &[f64], se: Vec<f64>, truth: &[f64]) {
+        self.covered.push(
+            (0..truth.len())
+                .map(|j| (est[j] - truth[j]).abs() <= 1.96 * se[j])
+                .collect(),
+        );
+        self.std_err.push(se);
+        self.push(est, truth);
+    }
+
+    /// The latest run's worst error in units of the CRB std (variances `var`).
+    fn push_crb_units(&mut self, var: &[f64]) {
+        if let Some(e) = self.err.last() {
+            let worst = e
+                .iter()
+                .zip(var)
+                .map(|(e, v)| e.abs() / v.sqrt())
+                .fold(0.0, f64::max);
+            self.crb_units.push(worst);
+        }
     }
 
     fn push_err(&mut self, e: Vec<f64>, truth: &[f64]) {
@@ -388,6 +429,16 @@ impl Acc {
                 })
                 .collect()
         });
+        let crb_units = (!self.crb_units.is_empty()).then(|| {
+            let m = self.crb_units.len() as f64;
+            let share = |t: f64| self.crb_units.iter().filter(|&&v| v > t).count() as f64 / m;
+            CrbUnits {
+                median: median(&self.crb_units),
+                share_over_10: share(10.0),
+                share_over_100: share(100.0),
+                max: self.crb_units.iter().copied().fold(0.0, f64::max),
+            }
+        });
         MethodStats {
             method: method.to_string(),
             n,
@@ -396,6 +447,7 @@ impl Acc {
             median_max_rel: median(&self.max_rel),
             coverage,
             rms_std_err,
+            crb_units,
             failures: self.failures,
             runs,
         }
@@ -432,19 +484,31 @@ pub(super) fn default_starts(
     starts
 }
 
-/// One run of the study: the record of seed `s`, truncated at each N, and the fits. Returns, per N, the
-/// estimates of the two MRGIA settings, the OE fit (or its error) and the CRB variances.
-type RunResult = Vec<(Vec<f64>, Vec<f64>, Option<OeFit>, Option<Vec<f64>>)>;
+/// One N of one run: the estimates of the two MRGIA settings, refine's estimate and standard errors (when
+/// asked for), the OE fit (or its error) and the CRB variances.
+#[derive(Debug, Clone, Default)]
+struct AtN {
+    paper: Vec<f64>,
+    rec: Vec<f64>,
+    refine: Option<(Vec<f64>, Vec<f64>)>,
+    oe: Option<OeFit>,
+    bound: Option<Vec<f64>>,
+}
+
+/// One run of the study: the record of seed `s`, truncated at each N, and the fits, per N.
+type RunResult = Vec<AtN>;
+
+/// Which of the optional methods a run computes.
+#[derive(Debug, Clone, Copy)]
+struct Wants {
+    refine: bool,
+    oe: bool,
+    crb: bool,
+}
 
 /// The run of seed `s` on plant `truth` at `snr`, read at each of `ns`; the OE fit and the CRB only when
 /// asked for. Returns the noise std and the per-N results.
-fn one_run(
-    truth: PlantParams,
-    ns: &[usize],
-    snr: f64,
-    s: u64,
-    (want_oe, want_crb): (bool, bool),
-) -> (f64, RunResult) {
+fn one_run(truth: PlantParams, ns: &[usize], snr: f64, s: u64, want: Wants) -> (f64, RunResult) {
     let (na, nb, d) = (truth.arx.na, truth.arx.nb, truth.arx.delay);
     let n_max = ns.iter().copied().max().unwrap_or(0);
     let u = paper_input(n_max, s);
@@ -461,9 +525,12 @@ fn one_run(
         .collect();
     let mut paper = Mrgia::new(MrgiaConfig::paper(na, nb, d)).expect("valid");
     let mut rec = Mrgia::new(MrgiaConfig::recommended(na, nb, d)).expect("valid");
+    let mut refine = want
+        .refine
+        .then(|| Refined::new(MrgiaConfig::paper(na, nb, d)).expect("valid"));
     let mut order: Vec<usize> = (0..ns.len()).collect();
     order.sort_by_key(|&i| ns[i]);
-    let mut out: RunResult = vec![(vec![], vec![], None, None); ns.len()];
+    let mut out: RunResult = vec![AtN::default(); ns.len()];
     let mut done = 0;
     let oe_cfg = OeConfig::new(na, nb, d);
     for &i in &order {
@@ -471,23 +538,37 @@ fn one_run(
         while done < n {
             paper.update(u[done], y[done]);
             rec.update(u[done], y[done]);
+            if let Some(r) = &mut refine {
+                r.update(u[done], y[done]);
+            }
             done += 1;
         }
         let (ep, er) = (paper.estimate(), rec.estimate());
-        let oe = want_oe
+        let oe = want
+            .oe
             .then(|| {
                 let starts = default_starts(er.clone(), Some(ep.clone()));
                 fit_from(&oe_cfg, &u[..n], &y[..n], &starts).ok()
             })
             .flatten();
-        let bound = want_crb
+        let bound = want
+            .crb
             .then(|| {
                 crb(&truth, &u[..n], noise_std)
                     .ok()
                     .map(|c| c.std.iter().map(|s| s * s).collect())
             })
             .flatten();
-        out[i] = (theta_of(&ep), theta_of(&er), oe, bound);
+        let p = ep.a.len() + ep.b.len() + 3;
+        out[i] = AtN {
+            paper: theta_of(&ep),
+            rec: theta_of(&er),
+            refine: refine
+                .as_ref()
+                .map(|r| (r.values()[..p].to_vec(), r.std_err_values()[..p].to_vec())),
+            oe,
+            bound,
+        };
     }
     (noise_std, out)
 }
@@ -496,7 +577,12 @@ fn one_run(
 pub fn monte_carlo(cfg: &StudyConfig, mut progress: impl FnMut(u64)) -> StudyResult {
     let mut runs = Vec::with_capacity(cfg.seeds as usize);
     for (done, s) in (cfg.first_seed..cfg.first_seed + cfg.seeds).enumerate() {
-        runs.push(one_run(PlantParams::PAPER, &cfg.ns, cfg.snr, s, (true, true)).1);
+        let all = Wants {
+            refine: true,
+            oe: true,
+            crb: true,
+        };
+        runs.push(one_run(PlantParams::PAPER, &cfg.ns, cfg.snr, s, all).1);
         progress(done as u64 + 1);
     }
     aggregate("paper", &PlantParams::PAPER, cfg, &METHODS, runs.iter())
@@ -514,29 +600,36 @@ fn aggregate<'a>(
     let truth = theta_of(&super::estimate_of(truth_p));
     let p = truth.len();
     let k = cfg.ns.len();
-    let mut acc: Vec<[Acc; 4]> = (0..k).map(|_| Default::default()).collect();
+    let mut acc: Vec<[Acc; 5]> = (0..k).map(|_| Default::default()).collect();
     for run in runs {
-        for (i, (ep, er, oe, bound)) in run.iter().enumerate() {
-            let [a_paper, a_rec, a_oe, a_crb] = &mut acc[i];
-            a_paper.push(ep, &truth);
-            a_rec.push(er, &truth);
-            match oe {
+        for (i, r) in run.iter().enumerate() {
+            let [a_paper, a_rec, a_refine, a_oe, a_crb] = &mut acc[i];
+            a_paper.push(&r.paper, &truth);
+            a_rec.push(&r.rec, &truth);
+            let mut estimators: Vec<&mut Acc> = vec![a_paper, a_rec];
+            match &r.refine {
+                Some((est, se)) => {
+                    a_refine.push_with_se(est, se.clone(), &truth);
+                    estimators.push(a_refine);
+                }
+                None => a_refine.failures += 1,
+            }
+            match &r.oe {
                 Some(f) => {
                     let est = theta_of(&f.estimate);
-                    let se = f.uncertainty.std.clone();
-                    a_oe.covered.push(
-                        (0..p)
-                            .map(|j| (est[j] - truth[j]).abs() <= 1.96 * se[j])
-                            .collect(),
-                    );
-                    a_oe.std_err.push(se);
-                    a_oe.push(&est, &truth);
+                    a_oe.push_with_se(&est, f.uncertainty.std.clone(), &truth);
+                    estimators.push(a_oe);
                 }
                 None => a_oe.failures += 1,
             }
-            match bound {
+            match &r.bound {
                 // The CRB std as the error: its RMS is the root mean CRB variance.
-                Some(var) => a_crb.push_err(var.iter().map(|v| v.sqrt()).collect(), &truth),
+                Some(var) => {
+                    for a in estimators {
+                        a.push_crb_units(var);
+                    }
+                    a_crb.push_err(var.iter().map(|v| v.sqrt()).collect(), &truth);
+                }
                 None => a_crb.failures += 1,
             }
         }
@@ -570,16 +663,20 @@ fn rows_of(
 ) {
     let names = param_names(v.params.arx.na, v.params.arx.nb);
     let truth = theta_of(&super::estimate_of(&v.params));
-    for (i, (ep, er, oe, bound)) in run.iter().enumerate() {
-        let oe_est = oe.as_ref().map(|f| theta_of(&f.estimate));
-        let oe_se = oe.as_ref().map(|f| &f.uncertainty.std);
+    for (i, r) in run.iter().enumerate() {
+        let oe_est = r.oe.as_ref().map(|f| theta_of(&f.estimate));
+        let oe_se = r.oe.as_ref().map(|f| &f.uncertainty.std);
         for m in METHODS.iter().filter(|m| methods.contains(m)) {
             for (j, name) in names.iter().enumerate() {
                 let (estimate, std_err) = match *m {
-                    "mrgia-paper" => (Some(ep[j]), None),
-                    "mrgia-recommended" => (Some(er[j]), None),
+                    "mrgia-paper" => (Some(r.paper[j]), None),
+                    "mrgia-recommended" => (Some(r.rec[j]), None),
+                    "refine" => match &r.refine {
+                        Some((e, s)) => (Some(e[j]), Some(s[j])),
+                        None => (None, None),
+                    },
                     "oe" => (oe_est.as_ref().map(|e| e[j]), oe_se.map(|s| s[j])),
-                    _ => (None, bound.as_ref().map(|v| v[j].sqrt())),
+                    _ => (None, r.bound.as_ref().map(|v| v[j].sqrt())),
                 };
                 out.push(Row {
                     plant: v.name.to_string(),
@@ -611,7 +708,11 @@ pub fn grid_study(
         .map(|p| plant_variant(p).expect("validated"))
         .collect();
     let methods: Vec<&str> = METHODS.iter().copied().filter(|m| cfg.wants(m)).collect();
-    let want = (cfg.wants("oe"), cfg.wants("crb"));
+    let want = Wants {
+        refine: cfg.wants("refine"),
+        oe: cfg.wants("oe"),
+        crb: cfg.wants("crb"),
+    };
     let cells: Vec<(usize, usize, u64)> = (0..variants.len())
         .flat_map(|p| {
             (0..cfg.snrs.len()).flat_map(move |r| {
@@ -712,11 +813,13 @@ impl StudyResult {
     }
 
     /// One CSV row per method, N and parameter:
-    /// `method,n,param,truth,rmse,rel_rmse,bias,coverage,rms_std_err,runs,failures` (empty fields where a
-    /// statistic does not apply).
+    /// `method,n,param,truth,rmse,rel_rmse,bias,coverage,rms_std_err,runs,failures,median_worst_crb,
+    /// share_over_10_crb` (empty fields where a statistic does not apply; the last two are per method and N,
+    /// repeated on each parameter's line).
     pub fn to_csv(&self) -> String {
         let mut s = String::from(
-            "method,n,param,truth,rmse,rel_rmse,bias,coverage,rms_std_err,runs,failures\n",
+            "method,n,param,truth,rmse,rel_rmse,bias,coverage,rms_std_err,runs,failures,\
+             median_worst_crb,share_over_10_crb\n",
         );
         let opt = |v: &Option<Vec<f64>>, i: usize| {
             v.as_ref()
@@ -726,7 +829,7 @@ impl StudyResult {
         for st in &self.stats {
             for (i, name) in self.names.iter().enumerate() {
                 s.push_str(&format!(
-                    "{},{},{},{:?},{:?},{:?},{:?},{},{},{},{}\n",
+                    "{},{},{},{:?},{:?},{:?},{:?},{},{},{},{},{},{}\n",
                     st.method,
                     st.n,
                     name,
@@ -737,7 +840,13 @@ impl StudyResult {
                     opt(&st.coverage, i),
                     opt(&st.rms_std_err, i),
                     st.runs,
-                    st.failures
+                    st.failures,
+                    st.crb_units
+                        .map(|c| format!("{:?}", c.median))
+                        .unwrap_or_default(),
+                    st.crb_units
+                        .map(|c| format!("{:?}", c.share_over_10))
+                        .unwrap_or_default(),
                 ));
             }
         }
@@ -750,6 +859,7 @@ impl StudyResult {
         let labels = [
             "MRGIA (paper setting)",
             "MRGIA (recommended)",
+            "MRGIA refine",
             "output error (OE)",
             "Cramer-Rao bound std",
         ];

@@ -582,9 +582,9 @@ fn study_writes_a_table_and_a_plot() {
     let mut calls = vec![];
     let r = monte_carlo(&cfg, |d| calls.push(d));
     assert_eq!(calls, vec![1, 2, 3]);
-    assert_eq!(r.stats.len(), 8);
+    assert_eq!(r.stats.len(), 10);
     let csv = r.to_csv();
-    assert_eq!(csv.lines().count(), 1 + 8 * 6);
+    assert_eq!(csv.lines().count(), 1 + 10 * 6);
     assert!(csv.starts_with("method,n,param,truth,rmse"));
     let dir = std::env::temp_dir().join(format!("oe-study-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -638,8 +638,8 @@ fn grid_study_does_not_depend_on_the_thread_count() {
         serde_json::to_string(&one).unwrap(),
         serde_json::to_string(&four).unwrap()
     );
-    // 2 plants x 2 SNRs x 4 seeds x 2 N x 4 methods x (6 or 7 parameters).
-    assert_eq!(one.rows.len(), 2 * 4 * 2 * 4 * (6 + 7));
+    // 2 plants x 2 SNRs x 4 seeds x 2 N x 5 methods x (6 or 7 parameters).
+    assert_eq!(one.rows.len(), 2 * 4 * 2 * 5 * (6 + 7));
     assert_eq!(one.groups.len(), 4);
     assert_eq!(one.group("second-order-b", 20.0).unwrap().names.len(), 7);
 }
@@ -737,7 +737,7 @@ fn tidy_table_aggregates_to_the_reported_statistics() {
                 let rmse = (e.iter().map(|v| v * v).sum::<f64>() / m).sqrt();
                 let bias = if crb { 0.0 } else { e.iter().sum::<f64>() / m };
                 assert_eq!((st.rmse[i], st.bias[i]), (rmse, bias), "{}", st.method);
-                if st.method == "oe" {
+                if st.method == "oe" || st.method == "refine" {
                     let cov = ok
                         .iter()
                         .filter(|x| x.error().unwrap().abs() <= 1.96 * x.std_err.unwrap())
@@ -749,6 +749,7 @@ fn tidy_table_aggregates_to_the_reported_statistics() {
                     assert_eq!(st.rms_std_err.as_ref().unwrap()[i], rms);
                 } else {
                     assert!(ok.iter().all(|x| x.std_err.is_some() == crb));
+                    assert!(st.coverage.is_none());
                 }
                 checked += 1;
             }
@@ -757,8 +758,8 @@ fn tidy_table_aggregates_to_the_reported_statistics() {
             assert_eq!(st.median_max_rel, 0.5 * (max_rel[h - 1] + max_rel[h]));
         }
     }
-    // 4 methods x 2 N x (6 + 7 parameters) x 2 SNRs.
-    assert_eq!(checked, 4 * 2 * 13 * 2);
+    // 5 methods x 2 N x (6 + 7 parameters) x 2 SNRs.
+    assert_eq!(checked, 5 * 2 * 13 * 2);
 }
 
 /// Every plant variant is identifiable on the paper input: over 60 runs at SNR 43 and N = 3000 the OE fit
