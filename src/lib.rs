@@ -5,8 +5,11 @@
 //! - [`identify`]: the estimators: MRGIA (paper 000), frequency LS / separable LS (paper 003).
 //! - [`diagnose`]: residual tests that trace a model's error to the effect it lacks.
 //! - [`fmi2`]: one FMI 2.0 co-simulation layer, generic over the model; [`fmus`]: the two adapters.
+//! - [`api`]: the command line's results as JSON objects, computed from arrays (the program and the Python
+//!   package share it).
 //! - [`io`]: validated CSV reading, atomic writing; [`report`]: PNG plots; [`stats`]: descriptive statistics.
 
+pub mod api;
 pub mod diagnose;
 pub mod fmi2;
 pub mod fmus;

@@ -1,6 +1,7 @@
 //! `backlash identify mrgia`: the recursive MRGIA estimator of paper 000 on a data file.
 
 use anyhow::{Context, Result};
+use backlash::api::{MrgiaSettings, mrgia_json};
 use backlash::identify::mrgia::{Mrgia, MrgiaConfig, StepResult};
 use backlash::io::{AtomicFile, ReadAhead, RowReader};
 use backlash::report::plot::{Axes, Series, line_plot};
@@ -59,23 +60,16 @@ pub struct MrgiaArgs {
 }
 
 impl MrgiaArgs {
-    fn config(&self) -> Result<MrgiaConfig> {
-        let base = if self.recommended {
-            MrgiaConfig::recommended(self.na, self.nb, self.delay)
-        } else {
-            MrgiaConfig::paper(self.na, self.nb, self.delay)
-        };
-        let cfg = MrgiaConfig {
-            p0: self.p0.unwrap_or(base.p0),
-            rho_exp: self.rho_exp.unwrap_or(base.rho_exp),
-            rho_min: self.rho_min.unwrap_or(base.rho_min),
-            eps: self.eps.unwrap_or(base.eps),
-            sigma0: self.sigma0.unwrap_or(base.sigma0),
-            c_init: self.c_init.unwrap_or(base.c_init),
-            ..base
-        };
-        cfg.validate().context("invalid estimator setting")?;
-        Ok(cfg)
+    fn settings(&self) -> MrgiaSettings {
+        MrgiaSettings {
+            recommended: self.recommended,
+            p0: self.p0,
+            rho_exp: self.rho_exp,
+            rho_min: self.rho_min,
+            eps: self.eps,
+            sigma0: self.sigma0,
+            c_init: self.c_init,
+        }
     }
 }
 
@@ -170,7 +164,10 @@ impl Decimated {
 /// The file is read, checked and estimated in one pass, row by row: memory does not depend on its length
 /// (the trace is written as it goes, the plot keeps at most [`PLOT_POINTS`] points).
 pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
-    let cfg = args.config()?;
+    let settings = args.settings();
+    let cfg = settings
+        .config(args.na, args.nb, args.delay)
+        .context("invalid estimator setting")?;
     let mut est = Mrgia::new(cfg)?;
     let rows = RowReader::open(&args.file, &["time", "u", "y"])?;
     let labels = names(&cfg);
@@ -230,12 +227,7 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
         w.commit()
             .with_context(|| format!("{}: cannot write the trace", path.display()))?;
     }
-    let e = est.estimate();
-    let setting = if args.recommended {
-        "recommended"
-    } else {
-        "paper"
-    };
+    let setting = settings.name();
 
     if let (Some(path), Some(mut p)) = (&args.plot, plot) {
         p.finish(samples - 1, &flat(&est));
@@ -258,20 +250,8 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
     }
 
     if args.json {
-        let out = json!({
-            "method": "mrgia",
-            "a": e.a,
-            "b": e.b,
-            "m1": e.m1,
-            "m2": e.m2,
-            "c1": e.c1,
-            "c2": e.c2,
-            "samples": samples,
-            "updates": updates,
-            "setting": setting,
-            "config": cfg,
-            "file": args.file.display().to_string(),
-        });
+        let mut out = mrgia_json(&est, samples, updates, setting);
+        out["file"] = json!(args.file.display().to_string());
         println!("{out}");
     } else {
         println!(
