@@ -78,6 +78,9 @@ fn main() {
         package::write_fmu(&target.join("fmu"), stem, text, &lib, &platform)
             .unwrap_or_else(|e| fail(&e));
     }
+    // Dependents (the Python extension, which copies the FMUs into its package) read this as
+    // DEP_BACKLASH_FMU_FMU_DIR; the FMI 3.0 variants are in the sibling folder `fmu3`.
+    println!("cargo:fmu_dir={}", target.join("fmu").display());
 }
 
 fn fail(msg: &str) -> ! {
