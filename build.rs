@@ -103,6 +103,9 @@ fn main() {
         )
         .unwrap_or_else(|e| fail(&e));
     }
+    // Dependents (the Python extension, which copies the FMUs into its package) read this as
+    // DEP_BACKLASH_FMU_FMU_DIR; the FMI 3.0 variants are in the sibling folder `fmu3`.
+    println!("cargo:fmu_dir={}", target.join("fmu").display());
 }
 
 fn fail(msg: &str) -> ! {

@@ -10,12 +10,11 @@ import pathlib
 import sys
 import tempfile
 
+from fmpy.validation import validate_fmu
+
+from backlash_fmu.cosim import build_container
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests" / "python"))
-
-from fmpy.validation import validate_fmu  # noqa: E402
-
-from cosim import build_container  # noqa: E402
 
 
 def main():

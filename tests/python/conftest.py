@@ -4,6 +4,8 @@ import pathlib
 
 import pytest
 
+from backlash_fmu import cosim
+
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 FMU_DIR = pathlib.Path(os.environ.get("BACKLASH_FMU_DIR", ROOT / "target" / "fmu"))
 FMU3_DIR = pathlib.Path(os.environ.get("BACKLASH_FMU3_DIR", ROOT / "target" / "fmu3"))
@@ -37,6 +39,8 @@ class Log:
 
 
 LOG = Log()
+# The package's co-simulation helpers instantiate their FMUs with this logger too (one per process).
+cosim.use_callbacks(LOG.callbacks)
 
 
 class Log3:

@@ -15,8 +15,8 @@ import pytest
 from fmpy import simulate_fmu
 from fmpy.validation import validate_fmu
 
-import cosim
-from cosim import CONTAINER_OUTPUTS, build_container
+from backlash_fmu import cosim
+from backlash_fmu.cosim import CONTAINER_OUTPUTS, build_container
 
 N = 3000
 SEED = 0  # paper input seed; with it run_pair is within 1e-6 from sample ~1160 on (checked in test below)

@@ -1,4 +1,4 @@
-"""The Dask co-simulation study (tests/python/cosim_study.py, scripts/dask_study.py): a LocalCluster of worker
+"""The Dask co-simulation study (backlash_fmu.study, `python -m backlash_fmu.study`): a LocalCluster of worker
 processes gives exactly the serial table, and a cell's rows are what the reference master cosim.run_pair
 reads from the same FMUs."""
 import json
@@ -9,13 +9,12 @@ import sys
 import numpy as np
 import pytest
 
-import cosim_study
 import reference
-from conftest import LOG, ROOT
-from cosim import run_pair
+from backlash_fmu import study as cosim_study
+from backlash_fmu.cosim import run_pair
+from conftest import LOG
 
-# In this process the FMUs log to the session's one logger (conftest.Log explains why there is only one).
-cosim_study.use_callbacks(LOG.callbacks)
+# In this process the FMUs log to the session's one logger (conftest.py hands it to backlash_fmu.cosim).
 
 GRID = dict(seeds=2, ns=[300, 1000], snrs=[43.0], plants=["paper", "second-order-b"])
 
@@ -61,9 +60,9 @@ def test_cells_read_what_the_reference_master_reads(plant_fmu, estimator_fmu, se
                 assert all(x[9] == x[8] - x[7] and x[7] == p[x[6]] for x in mine)
 
 
-def test_script_runs_serially_and_writes_its_files(plant_fmu, estimator_fmu, tmp_path):
+def test_module_runs_serially_and_writes_its_files(plant_fmu, estimator_fmu, tmp_path):
     out = subprocess.run(
-        [sys.executable, ROOT / "scripts" / "dask_study.py", "--serial", "--seeds", "2", "--ns", "100,200",
+        [sys.executable, "-m", "backlash_fmu.study", "--serial", "--seeds", "2", "--ns", "100,200",
          "--plant-fmu", plant_fmu, "--estimator-fmu", estimator_fmu, "--out", tmp_path, "--json"],
         capture_output=True, text=True, check=True).stdout
     report = json.loads(out)

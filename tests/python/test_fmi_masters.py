@@ -19,7 +19,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2Discard, fmi2LastSuccessfulTime
 
 from conftest import LOG
-from cosim import ESTIMATE_NAMES, _Slave, max_rel_error, paper_input, run_pair
+from backlash_fmu.cosim import ESTIMATE_NAMES, _Slave, max_rel_error, paper_input, run_pair
 
 PLANT_OUT = ["y", "w", "x"]
 

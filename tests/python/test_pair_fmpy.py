@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import reference
-from cosim import CHECKED, max_rel_error, paper_input, run_pair
+from backlash_fmu.cosim import CHECKED, max_rel_error, paper_input, run_pair
 
 SEEDS = range(20)
 

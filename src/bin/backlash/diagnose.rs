@@ -1,14 +1,14 @@
 //! `backlash diagnose`: fit the declared model, test its residual, and name the catalogue effect it lacks.
 
-use crate::structure::StructureArgs;
+use super::structure::StructureArgs;
 use anyhow::{Context, Result, bail};
-use backlash::diagnose::engine::{DiagnoseConfig, diagnose};
-use backlash::diagnose::output::DiagnosisOut;
+use backlash::api::{DiagnoseOptions, diagnose, diagnosis_json};
 use backlash::diagnose::record::decimate;
 use backlash::diagnose::report::{ReportInput, Validation, write_report};
 use backlash::io::Table;
 use backlash::report::number;
 use serde::Serialize;
+use serde_json::json;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
@@ -54,19 +54,6 @@ pub struct DiagnoseArgs {
     pub y_col: String,
 }
 
-/// The command's JSON: the diagnosis and what the command adds.
-#[derive(Serialize)]
-struct Out<'a> {
-    #[serde(flatten)]
-    diagnosis: DiagnosisOut<'a>,
-    file: String,
-    decimate: usize,
-    #[serde(rename = "Ts")]
-    ts: Option<f64>,
-    validate_on: Vec<ValidationOut>,
-    report: Option<String>,
-}
-
 #[derive(Serialize)]
 struct ValidationOut {
     file: String,
@@ -108,28 +95,22 @@ fn stem(p: &Path) -> String {
         .map_or("record".into(), |s| s.to_string_lossy().into_owned())
 }
 
-pub fn run(args: &DiagnoseArgs) -> Result<()> {
+/// `argv`: the command line as typed (the program's name first), for the report.
+pub fn run(args: &DiagnoseArgs, argv: &[String]) -> Result<()> {
     if args.decimate == 0 {
         bail!("--decimate must be at least 1");
     }
     let [t, u, y] = load(&args.file, args)?;
     let ts = sample_period(&t);
-    let mut cfg = match args.structure.declared() {
-        Some(s) => DiagnoseConfig::new(s.na, s.nb, s.delay),
-        None => DiagnoseConfig::auto(),
+    let opts = DiagnoseOptions {
+        structure: args.structure.declared(),
+        max_delay: args.structure.max_delay,
+        fit_fraction: args.fit_fraction,
+        seed: args.seed,
+        max_effects: args.max_effects,
+        time_budget: args.time_budget,
     };
-    cfg.max_delay = args.structure.max_delay;
-    cfg.fit_fraction = args.fit_fraction;
-    cfg.seed = args.seed;
-    cfg.max_effects = args.max_effects;
-    if !(args.time_budget.is_finite() && args.time_budget > 0.0 && args.time_budget <= 1e6) {
-        bail!(
-            "--time-budget {} must be a number of seconds between 0 and 1000000 (not 0)",
-            args.time_budget
-        );
-    }
-    cfg.time_budget = std::time::Duration::from_secs_f64(args.time_budget);
-    let d = diagnose(&u, &y, &cfg)
+    let d = diagnose(&u, &y, &opts)
         .with_context(|| format!("{}: cannot diagnose", args.file.display()))?;
 
     let mut validations = Vec::new();
@@ -152,8 +133,8 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
     let mut report_path = None;
     if let Some(dir) = &args.report {
         // The command as a user would type it (the program's own path replaced by its name).
-        let command = std::iter::once("backlash".to_string())
-            .chain(std::env::args().skip(1))
+        let command = std::iter::once("backlash")
+            .chain(argv.iter().skip(1).map(String::as_str))
             .collect::<Vec<_>>()
             .join(" ");
         let file = args.file.display().to_string();
@@ -186,15 +167,12 @@ pub fn run(args: &DiagnoseArgs) -> Result<()> {
                 rmse_after: v.result.rmse_after,
             })
             .collect();
-        let out = Out {
-            diagnosis: DiagnosisOut::new(&d, ts),
-            file: args.file.display().to_string(),
-            decimate: args.decimate,
-            ts,
-            validate_on,
-            report: report_path.as_ref().map(|p| p.display().to_string()),
-        };
-        println!("{}", serde_json::to_string(&out)?);
+        let mut out = diagnosis_json(&d, ts);
+        out["file"] = json!(args.file.display().to_string());
+        out["decimate"] = json!(args.decimate);
+        out["validate_on"] = serde_json::to_value(validate_on)?;
+        out["report"] = json!(report_path.as_ref().map(|p| p.display().to_string()));
+        println!("{out}");
         return Ok(());
     }
 

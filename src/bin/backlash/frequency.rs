@@ -9,8 +9,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 
+use backlash::api::{ApiError, FREQUENCY_CONVENTION, frequency_json, identify_frequency};
 use backlash::identify::frequency::analysis::{
-    Analysis, AnalysisOptions, BodePoint, SteppedAnalysis, analyse, analyse_steps,
+    Analysis, AnalysisOptions, BodePoint, SteppedAnalysis, analyse_steps,
 };
 use backlash::identify::frequency::experiment::{
     ExperimentPlant, Matched, ModelView, Record, SineDesign, SineRow, SteppedDesign, SteppedResult,
@@ -22,9 +23,7 @@ use backlash::plant::poly::poly_eval;
 use backlash::report::plot::{Axes, Panel, Series, grid_plot, line_plot};
 
 /// What a frequency estimate means (printed with every result).
-const CONVENTION: &str = "phase in [0, pi): the model (G, F) if -arg G(jw) mod 2pi is in [0, pi), else its dual \
-     (-G, F[-x]) (paper 003 eqs. (6)-(7)); scaled by eqs. (29)-(30a) so that sum_i |a_i|^(n/i) = 1 for the \
-     reported ascending border, gain = |G(jw)|/K";
+const CONVENTION: &str = FREQUENCY_CONVENTION;
 
 /// Columns of a sine record.
 #[derive(clap::Args, Debug, Clone)]
@@ -94,15 +93,6 @@ pub struct SteppedSineArgs {
     pub json: bool,
 }
 
-#[derive(Serialize)]
-struct IdentifyJson<'a> {
-    method: &'static str,
-    file: String,
-    #[serde(flatten)]
-    analysis: &'a Analysis,
-    convention: &'static str,
-}
-
 /// The time column: the one named, else `time`, else `t` when the file has `t` and no `time`.
 fn time_column(file: &Path, columns: &Columns) -> Result<String> {
     if let Some(c) = &columns.time_col {
@@ -154,20 +144,16 @@ pub fn run_identify(args: &IdentifyFrequencyArgs) -> Result<()> {
         transient: args.transient,
     };
     let file = args.file.display();
-    let analysis = analyse(&rec, &opts).map_err(|e| match e {
-        FrequencyError::SeveralSteps { .. } => anyhow::anyhow!(
+    let analysis = identify_frequency(rec.time, rec.u, rec.y, &opts).map_err(|e| match e {
+        ApiError::Frequency(e @ FrequencyError::SeveralSteps { .. }) => anyhow::anyhow!(
             "{file}: {e}: `backlash identify stepped-sine {file}` identifies them all, `--omega W` picks one"
         ),
         e => anyhow::anyhow!("{file}: frequency identification failed: {e}"),
     })?;
     if args.json {
-        let out = IdentifyJson {
-            method: "frequency",
-            file: file.to_string(),
-            analysis: &analysis,
-            convention: CONVENTION,
-        };
-        emit(&format!("{}\n", serde_json::to_string(&out)?))
+        let mut out = frequency_json(&analysis);
+        out["file"] = serde_json::json!(file.to_string());
+        emit(&format!("{out}\n"))
     } else {
         emit(&describe(&args.file, &analysis))
     }

@@ -1,8 +1,8 @@
 //! `backlash identify mrgia`: the recursive MRGIA estimator of paper 000 on a data file.
 
 use anyhow::{Context, Result};
+use backlash::api::{MrgiaSettings, mrgia_json};
 use backlash::identify::mrgia::{MrgiaConfig, StepResult};
-use backlash::identify::oe::StdErr;
 use backlash::identify::oe::online::OnlineEstimator;
 use backlash::io::{AtomicFile, ReadAhead, RowReader};
 use backlash::report::plot::{Axes, Series, line_plot};
@@ -65,23 +65,17 @@ pub struct MrgiaArgs {
 }
 
 impl MrgiaArgs {
-    fn config(&self) -> Result<MrgiaConfig> {
-        let base = if self.recommended {
-            MrgiaConfig::recommended(self.na, self.nb, self.delay)
-        } else {
-            MrgiaConfig::paper(self.na, self.nb, self.delay)
-        };
-        let cfg = MrgiaConfig {
-            p0: self.p0.unwrap_or(base.p0),
-            rho_exp: self.rho_exp.unwrap_or(base.rho_exp),
-            rho_min: self.rho_min.unwrap_or(base.rho_min),
-            eps: self.eps.unwrap_or(base.eps),
-            sigma0: self.sigma0.unwrap_or(base.sigma0),
-            c_init: self.c_init.unwrap_or(base.c_init),
-            ..base
-        };
-        cfg.validate().context("invalid estimator setting")?;
-        Ok(cfg)
+    fn settings(&self) -> MrgiaSettings {
+        MrgiaSettings {
+            recommended: self.recommended,
+            refine: self.refine,
+            p0: self.p0,
+            rho_exp: self.rho_exp,
+            rho_min: self.rho_min,
+            eps: self.eps,
+            sigma0: self.sigma0,
+            c_init: self.c_init,
+        }
     }
 }
 
@@ -176,7 +170,10 @@ impl Decimated {
 /// The file is read, checked and estimated in one pass, row by row: memory does not depend on its length
 /// (the trace is written as it goes, the plot keeps at most [`PLOT_POINTS`] points).
 pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
-    let cfg = args.config()?;
+    let settings = args.settings();
+    let cfg = settings
+        .config(args.na, args.nb, args.delay)
+        .context("invalid estimator setting")?;
     let mut est = OnlineEstimator::new(cfg, args.refine)?;
     let rows = RowReader::open(&args.file, &["time", "u", "y"])?;
     let labels = names(&cfg);
@@ -236,13 +233,7 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
         w.commit()
             .with_context(|| format!("{}: cannot write the trace", path.display()))?;
     }
-    let e = est.estimate();
-    let setting = match (args.recommended, args.refine) {
-        (true, false) => "recommended",
-        (false, false) => "paper",
-        (true, true) => "recommended, refine",
-        (false, true) => "paper, refine",
-    };
+    let setting = settings.name();
 
     if let (Some(path), Some(mut p)) = (&args.plot, plot) {
         p.finish(samples - 1, &flat(&est));
@@ -265,27 +256,8 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
     }
 
     if args.json {
-        let out = json!({
-            "method": "mrgia",
-            "a": e.a,
-            "b": e.b,
-            "m1": e.m1,
-            "m2": e.m2,
-            "c1": e.c1,
-            "c2": e.c2,
-            "samples": samples,
-            "updates": updates,
-            "setting": setting,
-            "config": cfg,
-            "file": args.file.display().to_string(),
-        });
-        let mut out = out;
-        if args.refine {
-            out["refine"] = json!(true);
-            // As the FMU's *_se outputs: 0 while unknown (during the warm-up).
-            let se: Vec<f64> = (0..cfg.n_params()).map(|i| est.std_err_at(i)).collect();
-            out["std_err"] = serde_json::to_value(StdErr::from_flat(cfg.na, cfg.nb, &se))?;
-        }
+        let mut out = mrgia_json(&est, samples, updates, setting);
+        out["file"] = json!(args.file.display().to_string());
         println!("{out}");
     } else {
         println!(

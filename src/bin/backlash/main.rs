@@ -72,8 +72,24 @@ fn quiet_on_closed_stdout() {
 }
 
 fn main() {
+    std::process::exit(run(std::env::args_os()));
+}
+
+/// The whole program on a command line (the program's name first): parses, runs the command, reports an
+/// error on standard error; returns the exit status. The Python package's `backlash` command calls this too
+/// (the extension includes these files), so the program and the command are the same code.
+pub fn run<I, T>(args: I) -> i32
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
     quiet_on_closed_stdout();
-    let cli = Cli::parse();
+    let argv: Vec<std::ffi::OsString> = args.into_iter().map(Into::into).collect();
+    let typed: Vec<String> = argv
+        .iter()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect();
+    let cli = Cli::parse_from(&argv);
     let result = match &cli.command {
         Command::Simulate(a) => simulate::run(a),
         Command::Identify(IdentifyCommand::Mrgia(a)) => identify::run_mrgia(a),
@@ -82,11 +98,14 @@ fn main() {
         Command::Experiment(a) => frequency::run_experiment(a),
         Command::Identify(IdentifyCommand::Oe(a)) => oe::run_oe(a),
         Command::Crb(a) => oe::run_crb(a),
-        Command::Diagnose(a) => diagnose::run(a),
+        Command::Diagnose(a) => diagnose::run(a, &typed),
         Command::Study(a) => oe::run_study(a),
     };
-    if let Err(e) = result {
-        eprintln!("error: {e:#}");
-        std::process::exit(1);
+    match result {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            1
+        }
     }
 }

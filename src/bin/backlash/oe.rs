@@ -2,19 +2,15 @@
 //! (Cramer-Rao bound of an input record: plan an experiment) and `backlash study` (Monte Carlo study of the
 //! paper's example).
 
-use crate::structure::StructureArgs;
+use super::structure::StructureArgs;
 use anyhow::{Context, Result, bail};
-use backlash::diagnose::structure::{StructureChoice, select_for_record};
-use backlash::identify::mrgia::{Estimate, paper_input};
-use backlash::identify::oe::{
-    self, GridConfig, OeConfig, OeFit, Uncertainty, crb, estimate_of, fit, param_names, plant_of,
-    simulate, theta_of,
-};
+use backlash::api::{CrbNoise, OeOptions, PlantSpec, crb, identify_oe};
+use backlash::identify::mrgia::paper_input;
+use backlash::identify::oe::{self, GridConfig, Uncertainty, param_names, simulate, theta_of};
 use backlash::io::{Table, write_atomic};
-use backlash::plant::{ArxParams, BacklashParams, PlantParams};
 use backlash::report::plot::{Axes, Series, line_plot};
 use indicatif::{ProgressBar, ProgressStyle};
-use serde_json::{Value, json};
+use serde_json::json;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -51,32 +47,6 @@ pub struct OeArgs {
     pub plot: Option<PathBuf>,
 }
 
-fn estimate_json(e: &Estimate) -> Value {
-    json!({"a": e.a, "b": e.b, "m1": e.m1, "m2": e.m2, "c1": e.c1, "c2": e.c2})
-}
-
-/// `{"a1": v, ...}` for per-parameter values in theta order.
-fn named<T: serde::Serialize>(names: &[String], v: &[T]) -> Value {
-    Value::Object(
-        names
-            .iter()
-            .zip(v)
-            .map(|(n, x)| (n.clone(), json!(x)))
-            .collect(),
-    )
-}
-
-fn plan_json(unc: &Uncertainty, target: f64) -> Result<Value> {
-    let (per, all) = unc.samples_for(target)?;
-    Ok(json!({
-        "target_rel": target,
-        "basis_samples": unc.samples,
-        "basis_noise_std": unc.noise_std,
-        "samples": named(&unc.names, &per),
-        "samples_all": all,
-    }))
-}
-
 fn print_plan(unc: &Uncertainty, target: f64) -> Result<()> {
     let (per, all) = unc.samples_for(target)?;
     println!(
@@ -101,26 +71,17 @@ pub fn run_oe(args: &OeArgs) -> Result<()> {
         table.column("u").unwrap(),
         table.column("y").unwrap(),
     );
-    let structure = match args.structure.declared() {
-        Some(s) => StructureChoice::declared(s),
-        None => select_for_record(u, y, max_delay),
+    let opts = OeOptions {
+        structure: args.structure.declared(),
+        max_delay,
+        single_start: args.single_start,
+        max_iter: args.max_iter,
+        crb_noise_std: args.crb_noise_std,
     };
-    let s = structure.chosen;
-    let mut cfg = OeConfig::new(s.na, s.nb, s.delay);
-    cfg.extra_starts = !args.single_start;
-    if let Some(m) = args.max_iter {
-        cfg.max_iter = m;
-    }
-    cfg.validate().context("invalid setting")?;
-    let started = Instant::now();
-    let f: OeFit = fit(&cfg, u, y).with_context(|| format!("{}", args.file.display()))?;
-    let seconds = started.elapsed().as_secs_f64();
+    let run = identify_oe(u, y, &opts).with_context(|| format!("{}", args.file.display()))?;
+    let (f, cfg, structure) = (&run.fit, &run.cfg, &run.structure);
     let names = param_names(cfg.na, cfg.nb);
-    let bound = match args.crb_noise_std {
-        Some(s) => Some(crb(&plant_of(&f.estimate, cfg.delay)?, u, s)?),
-        None => None,
-    };
-    let plan_basis = bound.as_ref().unwrap_or(&f.uncertainty);
+    let bound = run.bound.as_ref();
 
     if args.residuals.is_some() || args.plot.is_some() {
         let w = simulate(&f.estimate, cfg.delay, u)?;
@@ -163,44 +124,8 @@ pub fn run_oe(args: &OeArgs) -> Result<()> {
     }
 
     if args.json {
-        let e = &f.estimate;
-        let mut out = json!({
-            "method": "oe",
-            "a": e.a,
-            "b": e.b,
-            "m1": e.m1,
-            "m2": e.m2,
-            "c1": e.c1,
-            "c2": e.c2,
-            "samples": f.samples,
-            "std_err": f.std_err,
-            "sigma": f.sigma,
-            "rmse": f.rmse,
-            "cost": f.cost,
-            "iterations": f.iterations,
-            "converged": f.converged,
-            "modes": {"up": f.modes[0], "down": f.modes[1], "held": f.modes[2]},
-            "start": {
-                "method": f.start_method,
-                "rmse": f.start_rmse,
-                "estimate": estimate_json(&f.start),
-            },
-            "covariance": f.uncertainty.covariance,
-            "names": names,
-            "seconds": seconds,
-            "config": cfg,
-            "na": s.na,
-            "nb": s.nb,
-            "delay": s.delay,
-            "structure": structure,
-            "file": args.file.display().to_string(),
-        });
-        if let Some(c) = &bound {
-            out["crb"] = json!({"noise_std": c.noise_std, "std": c.std_err()});
-        }
-        if let Some(r) = args.target_rel {
-            out["plan"] = plan_json(plan_basis, r)?;
-        }
+        let mut out = run.json(args.target_rel)?;
+        out["file"] = json!(args.file.display().to_string());
         println!("{out}");
     } else {
         println!("Structure: {} ({})", structure.reason, structure.chosen_by);
@@ -215,12 +140,12 @@ pub fn run_oe(args: &OeArgs) -> Result<()> {
             } else {
                 "iteration limit reached"
             },
-            seconds * 1e3
+            run.seconds * 1e3
         );
         let est = theta_of(&f.estimate);
         for (i, n) in names.iter().enumerate() {
             print!("  {n:>3} = {:.6} +/- {:.6}", est[i], f.uncertainty.std[i]);
-            if let Some(c) = &bound {
+            if let Some(c) = bound {
                 print!("   (CRB std at noise {:e}: {:.6})", c.noise_std, c.std[i]);
             }
             println!();
@@ -235,7 +160,7 @@ pub fn run_oe(args: &OeArgs) -> Result<()> {
             "  (m1 = 1 is the normalisation; +/- is one standard error from the Fisher information)"
         );
         if let Some(r) = args.target_rel {
-            print_plan(plan_basis, r)?;
+            print_plan(run.plan_basis(), r)?;
         }
     }
     Ok(())
@@ -287,44 +212,23 @@ pub struct CrbArgs {
 }
 
 impl CrbArgs {
-    fn truth(&self) -> Result<PlantParams> {
-        let mut arx = ArxParams::PAPER;
-        if let Some(a) = &self.a {
-            if a.len() > 4 {
-                bail!("--a has {} coefficients; at most 4 are supported", a.len());
-            }
-            arx.na = a.len();
-            arx.a = [0.0; 4];
-            arx.a[..a.len()].copy_from_slice(a);
+    fn truth(&self) -> PlantSpec {
+        PlantSpec {
+            a: self.a.clone(),
+            b: self.b.clone(),
+            delay: self.delay,
+            m1: self.m1,
+            m2: self.m2,
+            c1: self.c1,
+            c2: self.c2,
+            noise_std: None,
+            noise_seed: None,
         }
-        if let Some(b) = &self.b {
-            if b.is_empty() || b.len() > 5 {
-                bail!("--b has {} coefficients; 1 to 5 are supported", b.len());
-            }
-            arx.nb = b.len() - 1;
-            arx.b = [0.0; 5];
-            arx.b[..b.len()].copy_from_slice(b);
-        }
-        arx.delay = self.delay.unwrap_or(arx.delay);
-        let d = BacklashParams::PAPER;
-        let p = PlantParams {
-            arx,
-            backlash: BacklashParams {
-                m1: self.m1.unwrap_or(d.m1),
-                m2: self.m2.unwrap_or(d.m2),
-                c1: self.c1.unwrap_or(d.c1),
-                c2: self.c2.unwrap_or(d.c2),
-            },
-            noise_std: 0.0,
-            noise_seed: 0,
-        };
-        p.validate()?;
-        Ok(p)
     }
 }
 
 pub fn run_crb(args: &CrbArgs) -> Result<()> {
-    let truth = args.truth()?;
+    let truth = args.truth();
     let (u, source): (Vec<f64>, String) = match (&args.file, args.paper_input) {
         (Some(path), _) => {
             let table = Table::read(path, &["time", "u"])?;
@@ -339,43 +243,16 @@ pub fn run_crb(args: &CrbArgs) -> Result<()> {
         ),
         (None, None) => bail!("give an input file or --paper-input N"),
     };
-    let noise_std = match (args.noise_std, args.snr) {
-        (Some(s), _) => s,
-        (None, Some(r)) => {
-            if !(r.is_finite() && r > 0.0) {
-                bail!("--snr {r} must be a positive finite number");
-            }
-            let w = simulate(&estimate_of(&truth), truth.arx.delay, &u)?;
-            let n = w.len().max(1) as f64;
-            let mean = w.iter().sum::<f64>() / n;
-            (w.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt() / r
-        }
+    let noise = match (args.noise_std, args.snr) {
+        (Some(s), _) => CrbNoise::Std(s),
+        (None, Some(r)) => CrbNoise::Snr(r),
         (None, None) => bail!("give --noise-std or --snr"),
     };
-    let c = crb(&truth, &u, noise_std)?;
-    let rel: Vec<Option<f64>> = c
-        .std
-        .iter()
-        .zip(&c.theta)
-        .map(|(s, t)| (*t != 0.0).then(|| s / t.abs()))
-        .collect();
+    let run = crb(&u, &truth, noise)?;
     if args.json {
-        let mut out = json!({
-            "method": "crb",
-            "input": source,
-            "samples": c.samples,
-            "noise_std": c.noise_std,
-            "truth": estimate_json(&estimate_of(&truth)),
-            "std": c.std_err(),
-            "rel_std": named(&c.names, &rel),
-            "covariance": c.covariance,
-            "names": c.names,
-        });
-        if let Some(r) = args.target_rel {
-            out["plan"] = plan_json(&c, r)?;
-        }
-        println!("{out}");
+        println!("{}", run.json(&source, args.target_rel)?);
     } else {
+        let (c, rel) = (&run.bound, &run.rel);
         println!(
             "Cramer-Rao bound of the output-error model on {source}: {} samples, noise std {:e}",
             c.samples, c.noise_std
@@ -389,7 +266,7 @@ pub fn run_crb(args: &CrbArgs) -> Result<()> {
         }
         println!("  (m1 = 1 normalisation; any unbiased estimator's std is at least this)");
         if let Some(r) = args.target_rel {
-            print_plan(&c, r)?;
+            print_plan(c, r)?;
         }
     }
     Ok(())

@@ -1,8 +1,8 @@
 //! `backlash simulate`: the plant of the library on an input CSV.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
+use backlash::api::{PlantSpec, simulate};
 use backlash::io::{Table, write_atomic};
-use backlash::plant::{Plant, PlantParams};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -70,36 +70,18 @@ impl PlantFlags {
         }
     }
 
-    fn params(&self) -> Result<PlantParams> {
-        let mut p = PlantParams::PAPER;
-        if let Some(a) = &self.a {
-            if a.len() > 4 {
-                bail!("--a has {} coefficients; at most 4 are supported", a.len());
-            }
-            p.arx.na = a.len();
-            p.arx.a = [0.0; 4];
-            p.arx.a[..a.len()].copy_from_slice(a);
+    fn spec(self) -> PlantSpec {
+        PlantSpec {
+            a: self.a,
+            b: self.b,
+            delay: self.delay,
+            m1: self.m1,
+            m2: self.m2,
+            c1: self.c1,
+            c2: self.c2,
+            noise_std: self.noise_std,
+            noise_seed: self.noise_seed,
         }
-        if let Some(b) = &self.b {
-            if b.is_empty() || b.len() > 5 {
-                bail!(
-                    "--b has {} coefficients; 1 to 5 (b0..b4) are supported",
-                    b.len()
-                );
-            }
-            p.arx.nb = b.len() - 1;
-            p.arx.b = [0.0; 5];
-            p.arx.b[..b.len()].copy_from_slice(b);
-        }
-        p.arx.delay = self.delay.unwrap_or(p.arx.delay);
-        p.backlash.m1 = self.m1.unwrap_or(p.backlash.m1);
-        p.backlash.m2 = self.m2.unwrap_or(p.backlash.m2);
-        p.backlash.c1 = self.c1.unwrap_or(p.backlash.c1);
-        p.backlash.c2 = self.c2.unwrap_or(p.backlash.c2);
-        p.noise_std = self.noise_std.unwrap_or(p.noise_std);
-        p.noise_seed = self.noise_seed.unwrap_or(p.noise_seed);
-        p.validate()?;
-        Ok(p)
     }
 }
 
@@ -118,10 +100,11 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
         b: args.plant.b.clone(),
         ..args.plant
     };
-    let params = flags.over(base).params()?;
+    let spec = flags.over(base).spec();
+    spec.params()?;
     let table = Table::read(&args.input, &["time", "u"])?;
     let (t, u) = (table.column("time").unwrap(), table.column("u").unwrap());
-    let out = Plant::simulate(params, u)?;
+    let out = simulate(&spec, u)?;
     let write = |w: &mut dyn Write| -> std::io::Result<()> {
         writeln!(w, "time,u,x,w,y")?;
         for ((t, u), o) in t.iter().zip(u).zip(&out) {

@@ -13,11 +13,12 @@ outputs are the estimates after sample k, and the plant's output is y(k+1).
         estimates after sample k = estimator.a1 .. c2, y_hat, e, updating
 
 Used by the tests as the reference master that other importers (fmpy's container FMU, libcosim) are compared
-against.
+against. Needs fmpy (`pip install "backlash-fmu[cosim]"`).
 """
 import copy
 import pathlib
 import shutil
+import sys
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -51,12 +52,43 @@ def max_rel_error(est_row, truth=None, names=ESTIMATE_NAMES):
     return max(abs(est_row[k] - truth[k]) / abs(truth[k]) for k in CHECKED)
 
 
-def _callbacks(callbacks):
-    if callbacks is not None:
-        return callbacks
-    from conftest import LOG  # lazily: the one session-wide logger (see conftest.Log)
+_PROCESS_CALLBACKS = None  # (callbacks, the Python logger they call): kept for the life of the process
 
-    return LOG.callbacks
+
+def use_callbacks(callbacks):
+    """Instantiate this process's FMUs with `callbacks` (already registered with fmpy's logger proxy) instead
+    of registering a new set: a process that has its own logger, such as a test session recording the FMUs'
+    log lines, must not have the proxy redirected away from it."""
+    global _PROCESS_CALLBACKS
+    _PROCESS_CALLBACKS = (callbacks, None)
+
+
+def process_callbacks():
+    """One set of FMI callbacks per process, never freed: fmpy's native logger proxy keeps a pointer to the
+    last Python logger registered, and a logger that is garbage-collected would leave it dangling. The
+    default one prints the FMUs' errors to standard error."""
+    global _PROCESS_CALLBACKS
+    if _PROCESS_CALLBACKS is None:
+        from ctypes import byref
+
+        from fmpy.fmi2 import defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+        from fmpy.logging import addLoggerProxy
+
+        def log(env, name, status, category, message):
+            if status >= 3:  # error, fatal: worth seeing
+                print(f"{name.decode()}: {message.decode()}", file=sys.stderr)
+
+        cb = fmi2CallbackFunctions()
+        cb.logger = fmi2CallbackLoggerTYPE(log)
+        cb.allocateMemory = defaultCallbacks.allocateMemory
+        cb.freeMemory = defaultCallbacks.freeMemory
+        addLoggerProxy(byref(cb))
+        _PROCESS_CALLBACKS = (cb, log)  # keep the Python function alive with the structure
+    return _PROCESS_CALLBACKS[0]
+
+
+def _callbacks(callbacks):
+    return process_callbacks() if callbacks is None else callbacks
 
 
 class _Fmi3:

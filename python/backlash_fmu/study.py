@@ -11,12 +11,13 @@ method, parameter), with the same columns as `backlash study`'s study_runs.csv (
 none).
 
 The FMUs travel as bytes: scattered once to every worker (client.scatter(..., broadcast=True)), extracted
-once per worker process and cached by their SHA-256, so workers need no shared file system. This module is
-sent to the workers with client.upload_file, so a remote cluster needs only dask, fmpy and numpy installed.
-Each process instantiates its FMUs with one process-wide set of FMI callbacks that lives as long as the
-process (fmpy's native logger proxy keeps a pointer to the last Python logger registered: see conftest.Log).
+once per worker process and cached by their SHA-256, so workers need no shared file system. The tasks are
+this module's functions, pickled by reference: every worker needs backlash-fmu installed with its `study`
+extra (`pip install "backlash-fmu[study]"`), as a LocalCluster's workers have. Each process instantiates its
+FMUs with one process-wide set of FMI callbacks that lives as long as the process
+(`cosim.process_callbacks`).
 
-Usage: scripts/dask_study.py (see --help).
+Usage: `python -m backlash_fmu.study --help`.
 """
 import atexit
 import hashlib
@@ -30,8 +31,9 @@ import zipfile
 
 import numpy as np
 
+from .cosim import paper_input, process_callbacks
+
 NOISE_SEED_OFFSET = 1_000_000  # the plant FMU's noise_seed is an FMI Integer (int32)
-PAPER_INPUT_VARIANCE = 1.93
 METHODS = ("mrgia-paper", "mrgia-recommended")
 HEADER = "plant,snr,n,seed,noise_std,method,param,truth,estimate,error,std_err"
 
@@ -54,46 +56,9 @@ def param_names(plant):
             + ["m2", "c1", "c2"])
 
 
-def paper_input(n, seed):
-    """White input uniform on [-A, A], variance 1.93 (as cosim.paper_input)."""
-    a = math.sqrt(3.0 * PAPER_INPUT_VARIANCE)
-    return np.random.default_rng(seed).uniform(-a, a, n)
-
-
 # --- per-process FMU cache ------------------------------------------------------------------------------------
 
 _UNZIPPED = {}  # sha256 -> (unzip dir, model description, variables by name)
-_CALLBACKS = None
-
-
-def use_callbacks(callbacks):
-    """Instantiate this process's FMUs with `callbacks` (already registered with fmpy's logger proxy) instead
-    of registering a new set: a process that has its own logger, such as the pytest session (conftest.LOG),
-    must not have the proxy redirected away from it."""
-    global _CALLBACKS
-    _CALLBACKS = (callbacks, None)
-
-
-def _callbacks():
-    """One set of FMI callbacks per process, never freed (see the module docstring)."""
-    global _CALLBACKS
-    if _CALLBACKS is None:
-        from ctypes import byref
-
-        from fmpy.fmi2 import defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
-        from fmpy.logging import addLoggerProxy
-
-        def log(env, name, status, category, message):
-            if status >= 3:  # error, fatal: worth seeing in the worker's log
-                print(f"{name.decode()}: {message.decode()}", file=sys.stderr)
-
-        cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(log)
-        cb.allocateMemory = defaultCallbacks.allocateMemory
-        cb.freeMemory = defaultCallbacks.freeMemory
-        addLoggerProxy(byref(cb))
-        _CALLBACKS = (cb, log)  # keep the Python function alive with the structure
-    return _CALLBACKS[0]
 
 
 def _unzipped(fmu):
@@ -126,7 +91,7 @@ class _Instance:
         d, md, self.vars = _unzipped(fmu)
         self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,
                              instanceName=name)
-        self.fmu.instantiate(callbacks=_callbacks())
+        self.fmu.instantiate(callbacks=process_callbacks())
         self.fmu.setupExperiment(startTime=0.0)
         for key, value in {"Ts": 1.0, **start}.items():
             v = self.vars[key]
@@ -282,11 +247,9 @@ def run_study(plant_fmu, estimator_fmu, seeds, ns, snrs=(43.0,), plants=("paper"
     else:
         from distributed import as_completed
 
-        client.upload_file(__file__)  # the workers import this module by name
+        # run_cell is pickled by reference: the workers import backlash_fmu.study (installed with the package).
         pf_f, ef_f = client.scatter([pf, ef], broadcast=True)
-        import cosim_study  # the module as the workers see it (pickled by reference)
-
-        futures = [client.submit(cosim_study.run_cell, pf_f, ef_f, plant, snr, seed, list(ns), pure=False)
+        futures = [client.submit(run_cell, pf_f, ef_f, plant, snr, seed, list(ns), pure=False)
                    for plant, snr, seed in todo]
         for fut in as_completed(futures):
             rows.extend(fut.result())
@@ -347,8 +310,13 @@ def main(argv=None):
     import json
     import pathlib
 
-    root = pathlib.Path(__file__).resolve().parents[2]
-    fmu_dir = pathlib.Path(os.environ.get("BACKLASH_FMU_DIR", root / "target" / "fmu"))
+    from . import fmu_path
+
+    env_dir = os.environ.get("BACKLASH_FMU_DIR")
+
+    def default_fmu(name):
+        return str(pathlib.Path(env_dir) / f"{name}.fmu") if env_dir else fmu_path(name)
+
     ap = argparse.ArgumentParser(description="Co-simulation Monte Carlo study of the MRGIA FMUs with Dask.")
     ap.add_argument("--seeds", type=int, default=10, help="runs per (plant, SNR) (default 10)")
     ap.add_argument("--first-seed", type=int, default=0)
@@ -358,8 +326,10 @@ def main(argv=None):
     ap.add_argument("--scheduler", help="address of a running dask scheduler (default: start a LocalCluster)")
     ap.add_argument("--workers", type=int, default=os.cpu_count(), help="LocalCluster worker processes")
     ap.add_argument("--serial", action="store_true", help="run in this process, without Dask")
-    ap.add_argument("--plant-fmu", default=str(fmu_dir / "BacklashPlant.fmu"))
-    ap.add_argument("--estimator-fmu", default=str(fmu_dir / "MrgiaEstimator.fmu"))
+    ap.add_argument("--plant-fmu", default=default_fmu("BacklashPlant"),
+                    help="default: the package's (or $BACKLASH_FMU_DIR/BacklashPlant.fmu)")
+    ap.add_argument("--estimator-fmu", default=default_fmu("MrgiaEstimator"),
+                    help="default: the package's (or $BACKLASH_FMU_DIR/MrgiaEstimator.fmu)")
     ap.add_argument("--out", help="folder for cosim_study.csv (tidy rows) and cosim_study.png (RMSE against N)")
     ap.add_argument("--json", action="store_true", help="print a JSON summary on stdout, no progress bar")
     ap.add_argument("--compare-serial", type=int, default=0, metavar="R",
@@ -368,7 +338,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     for f in (a.plant_fmu, a.estimator_fmu):
         if not os.path.exists(f):
-            ap.error(f"{f} is missing: build the FMUs (BACKLASH_FMU=always cargo build --release) or pass the path")
+            ap.error(f"{f} is missing: pass the path of an FMU")
     ns = [int(x) for x in a.ns.split(",")]
     snrs = [float(x) for x in a.snrs.split(",")]
     plants = a.plants.split(",")
@@ -439,3 +409,7 @@ def main(argv=None):
         for f in files:
             print(f"wrote {f}")
     return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

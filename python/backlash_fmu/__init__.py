@@ -1,0 +1,175 @@
+"""Backlash identification on NumPy arrays, the FMUs as files, and the `backlash` command.
+
+- `fmu_path(name, fmi_version=2)`: the packaged BacklashPlant / MrgiaEstimator FMU (for FMPy or any FMI tool).
+- `simulate(u, **params)`: the plant of `backlash simulate`.
+- `identify_mrgia`, `identify_oe`, `identify_frequency`, `crb`, `diagnose`: the estimators and the diagnosis,
+  returning the JSON object of the matching `backlash ... --json` command as a dict (equal to it on the same
+  data; the keys that describe a file, such as `file`, are None here).
+- `backlash_fmu.cosim` (FMPy pair master, container FMU) and `backlash_fmu.study` (the Dask study) need the
+  `cosim` and `study` extras.
+
+The computations run in Rust with the GIL released. A bad argument (NaN, arrays of different lengths, a
+record too short, an order out of range) raises ValueError with the library's message.
+"""
+import json
+import pathlib
+import sys
+
+import numpy as np
+
+from . import _backlash
+
+__version__ = _backlash.__version__
+__all__ = ["fmu_path", "simulate", "identify_mrgia", "identify_oe", "identify_frequency", "crb", "diagnose"]
+
+MODELS = ("BacklashPlant", "MrgiaEstimator")
+_HERE = pathlib.Path(__file__).resolve().parent
+
+
+def fmu_path(name, fmi_version=2):
+    """The path (str) of the FMU `name` ("BacklashPlant" or "MrgiaEstimator") inside the package: FMI 2.0,
+    or the FMI 3.0 variant with fmi_version=3."""
+    if name not in MODELS:
+        raise ValueError(f"unknown FMU {name!r}: the package has {' and '.join(MODELS)}")
+    folders = {2: "fmu", 3: "fmu3"}
+    if fmi_version not in folders:
+        raise ValueError(f"fmi_version {fmi_version!r} must be 2 or 3")
+    path = _HERE / folders[fmi_version] / f"{name}.fmu"
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"this installation of backlash-fmu has no FMI {fmi_version}.0 {name}.fmu ({path} is missing): "
+            + ("it was built before the FMI 3.0 variants existed, or without them"
+               if fmi_version == 3 else "it was built without packaging the FMUs (a debug build or BACKLASH_FMU=never)"))
+    return str(path)
+
+
+def _array(x, name):
+    """A one-dimensional float64 array (no copy when x already is one)."""
+    a = np.ascontiguousarray(x, dtype=np.float64)
+    if a.ndim != 1:
+        raise ValueError(f"{name} must be one-dimensional (one value per sample), not of shape {a.shape}")
+    return a
+
+
+def _progress(progress):
+    """None/False: no progress; True: a bar on standard error (tqdm's when installed); a callable: called as
+    progress(done, total)."""
+    if progress is None or progress is False:
+        return None
+    if callable(progress):
+        return progress
+    if progress is True:
+        return _Bar()
+    raise ValueError("progress must be None, True, False or a callable progress(done, total)")
+
+
+class _Bar:
+    """A progress bar on standard error: tqdm's when it is installed, else a line of text."""
+
+    def __init__(self):
+        self._tqdm = None
+
+    def __call__(self, done, total):
+        try:
+            from tqdm import tqdm
+        except ImportError:
+            tqdm = None
+        if tqdm is not None:
+            if self._tqdm is None:
+                self._tqdm = tqdm(total=total, unit="sample", unit_scale=True)
+            self._tqdm.update(done - self._tqdm.n)
+            if done >= total:
+                self._tqdm.close()
+            return
+        width = 40
+        full = width * done // max(total, 1)
+        sys.stderr.write(f"\r{'#' * full}{'-' * (width - full)} {done}/{total} samples")
+        if done >= total:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def _spec(params):
+    """Plant parameters as the library reads them (unknown names are refused there)."""
+    spec = {}
+    for k, v in params.items():
+        if v is None:
+            continue
+        if k in ("a", "b"):
+            spec[k] = [float(c) for c in np.atleast_1d(v)]
+        elif k in ("delay", "noise_seed"):
+            if int(v) != v or v < 0:
+                raise ValueError(f"{k} = {v!r} must be a non-negative integer")
+            spec[k] = int(v)
+        else:
+            spec[k] = float(v)
+    return json.dumps(spec)
+
+
+def _result(text, **file_keys):
+    out = json.loads(text)
+    out.update(file_keys)
+    return out
+
+
+def simulate(u, **params):
+    """The plant on the input samples u: {"x": ..., "w": ..., "y": ...} (NumPy arrays, one value per sample).
+
+    params are the plant FMU's parameters: a (list a1..a_na), b (list b0..b_nb), delay, m1, m2, c1, c2,
+    noise_std, noise_seed; unset ones are paper 000's example (a = [0.45, 0.55], b = [0.8], delay 1, m1 1,
+    m2 1.5, c1 0.5, c2 1, no noise).
+    """
+    x, w, y = _backlash.simulate(_array(u, "u"), _spec(params))
+    return {"x": x, "w": w, "y": y}
+
+
+def identify_mrgia(u, y, na, nb, delay, recommended=False, *, refine=False, p0=None, rho_exp=None, rho_min=None,
+                   eps=None, sigma0=None, c_init=None, progress=None):
+    """MRGIA (paper 000) over the record: the dict of `backlash identify mrgia --json`.
+
+    recommended selects the project's on-line setting; refine (the estimator FMU's `refine`) refines on-line to
+    the output-error accuracy and adds `std_err`; p0 .. c_init replace single settings. progress: None
+    (default), True (a bar on standard error) or a callable progress(done, total).
+    """
+    text = _backlash.identify_mrgia(_array(u, "u"), _array(y, "y"), na, nb, delay, recommended, refine, p0,
+                                    rho_exp, rho_min, eps, sigma0, c_init, _progress(progress))
+    return _result(text, file=None)
+
+
+def identify_oe(u, y, na=None, nb=None, delay=None, *, max_delay=10, single_start=False, max_iter=None,
+                crb_noise_std=None, target_rel=None):
+    """The output-error fit with standard errors: the dict of `backlash identify oe --json`. Without na, nb and
+    delay the structure is chosen from the data (as the command does)."""
+    text = _backlash.identify_oe(_array(u, "u"), _array(y, "y"), na, nb, delay, max_delay, single_start,
+                                 max_iter, crb_noise_std, target_rel)
+    return _result(text, file=None)
+
+
+def identify_frequency(time, u, y, *, omega=None, amplitude=None, degree=None, start=None, end=None,
+                       transient=None):
+    """Paper 003 on one sine experiment (time in s, omega in rad/s): the dict of `backlash identify frequency
+    --json`. u may be None when omega and amplitude are given."""
+    text = _backlash.identify_frequency(_array(time, "time"), None if u is None else _array(u, "u"),
+                                        _array(y, "y"), omega, amplitude, degree, start, end, transient)
+    return _result(text, file=None)
+
+
+def crb(u, *, noise_std=None, snr=None, target_rel=None, **truth):
+    """The Cramer-Rao bound of the output-error model on the input u: the dict of `backlash crb --json`.
+
+    Give noise_std or snr (std(w) / noise std); truth: the plant's a, b, delay, m1, m2, c1, c2 (default: paper
+    000's example).
+    """
+    text = _backlash.crb(_array(u, "u"), _spec(truth), noise_std, snr, target_rel, "array")
+    return _result(text)
+
+
+def diagnose(u, y, na=None, nb=None, delay=None, **options):
+    """The diagnosis of `backlash diagnose --json` as a dict: the held-out error before and after, and every
+    effect the model lacks (`effect` the first, or None).
+
+    options: ts (sample period in s: adds per-second rates), max_delay (10), fit_fraction (0.7), seed (0),
+    max_effects (3), time_budget (300 s). Without na, nb and delay the structure is chosen from the data.
+    """
+    text = _backlash.diagnose(_array(u, "u"), _array(y, "y"), na, nb, delay, **options)
+    return _result(text, file=None, decimate=1, validate_on=[], report=None)

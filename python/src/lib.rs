@@ -1,0 +1,335 @@
+//! `backlash_fmu._backlash`: the library on NumPy arrays, and the `backlash` command.
+//!
+//! Each function checks its arguments in the library (`backlash::api`), runs with the GIL released, and
+//! returns what the command line prints with `--json` (as its text: `backlash_fmu` parses it, so the dicts
+//! equal the program's JSON number for number). A bad argument raises `ValueError` with the library's message;
+//! a panic (a bug) is caught here and raised as `RuntimeError`, never unwound into Python.
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+
+use backlash::api::{
+    self, ApiError, CrbNoise, DiagnoseOptions, MrgiaSettings, OeOptions, PlantSpec,
+};
+use backlash::diagnose::structure::Structure;
+use backlash::identify::frequency::analysis::AnalysisOptions;
+use numpy::{PyArray1, PyReadonlyArray1};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+
+/// The program (src/bin/backlash): `backlash_fmu`'s console script runs [`cli::run`].
+#[allow(
+    dead_code,
+    reason = "the program's fn main is not called here: the extension calls cli::run"
+)]
+#[path = "../../src/bin/backlash/main.rs"]
+mod cli;
+
+/// Runs `f` with the GIL released; a library error becomes `ValueError`, a panic `RuntimeError`.
+fn compute<T: Send>(py: Python<'_>, f: impl FnOnce() -> Result<T, ApiError> + Send) -> PyResult<T> {
+    match py.detach(|| catch_unwind(AssertUnwindSafe(f))) {
+        Ok(Ok(v)) => Ok(v),
+        Ok(Err(e)) => Err(PyValueError::new_err(e.to_string())),
+        Err(panic) => {
+            let msg = panic
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| panic.downcast_ref::<&str>().copied())
+                .unwrap_or("no message");
+            Err(PyRuntimeError::new_err(format!(
+                "backlash: internal error (please report it): {msg}"
+            )))
+        }
+    }
+}
+
+/// The structure given by all three of na, nb and delay, or none of them.
+fn structure(
+    na: Option<usize>,
+    nb: Option<usize>,
+    delay: Option<usize>,
+) -> PyResult<Option<Structure>> {
+    match (na, nb, delay) {
+        (Some(na), Some(nb), Some(delay)) => Ok(Some(Structure { na, nb, delay })),
+        (None, None, None) => Ok(None),
+        _ => Err(PyValueError::new_err(
+            "give all three of na, nb and delay, or none of them (then the structure is chosen from the data)",
+        )),
+    }
+}
+
+/// A progress report to a Python callable `progress(done, total)`, made with the GIL taken back; the first
+/// exception it raises is kept (and later reports are skipped) until the computation returns.
+struct Progress {
+    callback: Option<Py<PyAny>>,
+    error: Option<PyErr>,
+}
+
+impl Progress {
+    fn new(callback: Option<Py<PyAny>>) -> Self {
+        Self {
+            callback,
+            error: None,
+        }
+    }
+
+    fn report(&mut self, done: usize, total: usize) {
+        if self.error.is_some() {
+            return;
+        }
+        if let Some(cb) = &self.callback {
+            Python::attach(|py| {
+                if let Err(e) = cb.call1(py, (done, total)) {
+                    self.error = Some(e);
+                }
+            });
+        }
+    }
+
+    fn finish<T>(self, result: PyResult<T>) -> PyResult<T> {
+        match self.error {
+            Some(e) => Err(e),
+            None => result,
+        }
+    }
+}
+
+fn json_text(v: &serde_json::Value) -> String {
+    v.to_string()
+}
+
+/// A NumPy array made here.
+type Array<'py> = Bound<'py, PyArray1<f64>>;
+
+/// simulate(u, spec_json) -> (x, w, y): the plant of `backlash simulate`; `spec_json` holds the parameters
+/// by name (`a`, `b` lists; unknown names are refused).
+#[pyfunction]
+fn simulate<'py>(
+    py: Python<'py>,
+    u: PyReadonlyArray1<'py, f64>,
+    spec_json: &str,
+) -> PyResult<(Array<'py>, Array<'py>, Array<'py>)> {
+    let spec: PlantSpec = serde_json::from_str(spec_json)
+        .map_err(|e| PyValueError::new_err(format!("plant parameters: {e}")))?;
+    let u = u.as_slice()?;
+    let out = compute(py, || api::simulate(&spec, u))?;
+    let col =
+        |f: fn(&backlash::plant::PlantOutput) -> f64| -> Vec<f64> { out.iter().map(f).collect() };
+    Ok((
+        PyArray1::from_vec(py, col(|o| o.x)),
+        PyArray1::from_vec(py, col(|o| o.w)),
+        PyArray1::from_vec(py, col(|o| o.y)),
+    ))
+}
+
+/// identify_mrgia(u, y, na, nb, delay, recommended, refine, p0, rho_exp, rho_min, eps, sigma0, c_init, progress)
+/// -> the JSON text of `identify mrgia`.
+#[pyfunction]
+#[pyo3(signature = (u, y, na, nb, delay, recommended=false, refine=false, p0=None, rho_exp=None, rho_min=None, eps=None,
+    sigma0=None, c_init=None, progress=None))]
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the Python signature: keyword arguments with defaults"
+)]
+fn identify_mrgia(
+    py: Python<'_>,
+    u: PyReadonlyArray1<'_, f64>,
+    y: PyReadonlyArray1<'_, f64>,
+    na: usize,
+    nb: usize,
+    delay: usize,
+    recommended: bool,
+    refine: bool,
+    p0: Option<f64>,
+    rho_exp: Option<f64>,
+    rho_min: Option<f64>,
+    eps: Option<f64>,
+    sigma0: Option<f64>,
+    c_init: Option<f64>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<String> {
+    let settings = MrgiaSettings {
+        recommended,
+        refine,
+        p0,
+        rho_exp,
+        rho_min,
+        eps,
+        sigma0,
+        c_init,
+    };
+    let (u, y) = (u.as_slice()?, y.as_slice()?);
+    let mut bar = Progress::new(progress);
+    let r = compute(py, || {
+        api::identify_mrgia(u, y, na, nb, delay, &settings, &mut |d, t| bar.report(d, t))
+            .map(|v| json_text(&v))
+    });
+    bar.finish(r)
+}
+
+/// identify_oe(u, y, na, nb, delay, max_delay, single_start, max_iter, crb_noise_std, target_rel)
+/// -> the JSON text of `identify oe`.
+#[pyfunction]
+#[pyo3(signature = (u, y, na=None, nb=None, delay=None, max_delay=10, single_start=false, max_iter=None,
+    crb_noise_std=None, target_rel=None))]
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the Python signature: keyword arguments with defaults"
+)]
+fn identify_oe(
+    py: Python<'_>,
+    u: PyReadonlyArray1<'_, f64>,
+    y: PyReadonlyArray1<'_, f64>,
+    na: Option<usize>,
+    nb: Option<usize>,
+    delay: Option<usize>,
+    max_delay: usize,
+    single_start: bool,
+    max_iter: Option<usize>,
+    crb_noise_std: Option<f64>,
+    target_rel: Option<f64>,
+) -> PyResult<String> {
+    let opts = OeOptions {
+        structure: structure(na, nb, delay)?,
+        max_delay,
+        single_start,
+        max_iter,
+        crb_noise_std,
+    };
+    let (u, y) = (u.as_slice()?, y.as_slice()?);
+    compute(py, || {
+        api::identify_oe(u, y, &opts)?
+            .json(target_rel)
+            .map(|v| json_text(&v))
+    })
+}
+
+/// identify_frequency(time, u, y, omega, amplitude, degree, start, end, transient) -> the JSON text of
+/// `identify frequency`.
+#[pyfunction]
+#[pyo3(signature = (time, u, y, omega=None, amplitude=None, degree=None, start=None, end=None,
+    transient=None))]
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the Python signature: keyword arguments with defaults"
+)]
+fn identify_frequency(
+    py: Python<'_>,
+    time: PyReadonlyArray1<'_, f64>,
+    u: Option<PyReadonlyArray1<'_, f64>>,
+    y: PyReadonlyArray1<'_, f64>,
+    omega: Option<f64>,
+    amplitude: Option<f64>,
+    degree: Option<usize>,
+    start: Option<f64>,
+    end: Option<f64>,
+    transient: Option<f64>,
+) -> PyResult<String> {
+    let opts = AnalysisOptions {
+        omega,
+        amplitude,
+        degree,
+        start,
+        end,
+        transient,
+    };
+    let (time, y) = (time.as_slice()?, y.as_slice()?);
+    let u = u.as_ref().map(|u| u.as_slice()).transpose()?;
+    compute(py, || {
+        api::identify_frequency(time, u, y, &opts).map(|a| json_text(&api::frequency_json(&a)))
+    })
+}
+
+/// crb(u, spec_json, noise_std, snr, target_rel, input) -> the JSON text of `backlash crb`.
+#[pyfunction]
+#[pyo3(signature = (u, spec_json, noise_std=None, snr=None, target_rel=None, input="array"))]
+fn crb(
+    py: Python<'_>,
+    u: PyReadonlyArray1<'_, f64>,
+    spec_json: &str,
+    noise_std: Option<f64>,
+    snr: Option<f64>,
+    target_rel: Option<f64>,
+    input: &str,
+) -> PyResult<String> {
+    let spec: PlantSpec = serde_json::from_str(spec_json)
+        .map_err(|e| PyValueError::new_err(format!("plant parameters: {e}")))?;
+    let noise = match (noise_std, snr) {
+        (Some(s), None) => CrbNoise::Std(s),
+        (None, Some(r)) => CrbNoise::Snr(r),
+        _ => {
+            return Err(PyValueError::new_err(
+                "give one of noise_std and snr (the noise of the bound)",
+            ));
+        }
+    };
+    let u = u.as_slice()?;
+    compute(py, || {
+        api::crb(u, &spec, noise)?
+            .json(input, target_rel)
+            .map(|v| json_text(&v))
+    })
+}
+
+/// diagnose(u, y, na, nb, delay, ts, max_delay, fit_fraction, seed, max_effects, time_budget)
+/// -> the JSON text of `backlash diagnose` (without what belongs to a file).
+#[pyfunction]
+#[pyo3(signature = (u, y, na=None, nb=None, delay=None, ts=None, max_delay=10, fit_fraction=0.7, seed=0,
+    max_effects=3, time_budget=300.0))]
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the Python signature: keyword arguments with defaults"
+)]
+fn diagnose(
+    py: Python<'_>,
+    u: PyReadonlyArray1<'_, f64>,
+    y: PyReadonlyArray1<'_, f64>,
+    na: Option<usize>,
+    nb: Option<usize>,
+    delay: Option<usize>,
+    ts: Option<f64>,
+    max_delay: usize,
+    fit_fraction: f64,
+    seed: u64,
+    max_effects: usize,
+    time_budget: f64,
+) -> PyResult<String> {
+    if let Some(t) = ts
+        && !(t.is_finite() && t > 0.0)
+    {
+        return Err(PyValueError::new_err(format!(
+            "the sample period ts = {t} must be a positive finite number of seconds"
+        )));
+    }
+    let opts = DiagnoseOptions {
+        structure: structure(na, nb, delay)?,
+        max_delay,
+        fit_fraction,
+        seed,
+        max_effects,
+        time_budget,
+    };
+    let (u, y) = (u.as_slice()?, y.as_slice()?);
+    compute(py, || {
+        api::diagnose(u, y, &opts).map(|d| json_text(&api::diagnosis_json(&d, ts)))
+    })
+}
+
+/// run_cli(argv) -> exit status: the `backlash` program on a command line (its name first), with the GIL
+/// released (a long `backlash study` does not hold up other threads).
+#[pyfunction]
+fn run_cli(py: Python<'_>, argv: Vec<String>) -> PyResult<i32> {
+    compute(py, || Ok(cli::run(argv)))
+}
+
+#[pymodule]
+fn _backlash(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(identify_mrgia, m)?)?;
+    m.add_function(wrap_pyfunction!(identify_oe, m)?)?;
+    m.add_function(wrap_pyfunction!(identify_frequency, m)?)?;
+    m.add_function(wrap_pyfunction!(crb, m)?)?;
+    m.add_function(wrap_pyfunction!(diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(run_cli, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -1,0 +1,596 @@
+//! The command line's results as JSON objects, computed from arrays: one implementation shared by the program
+//! (`backlash ... --json`, which reads a file and adds its name) and the Python package (which calls these
+//! functions on NumPy arrays). The keys are those of the contract; the program and the package differ only in
+//! what belongs to a file (`file`, `decimate`, `validate_on`, `report`).
+
+use std::time::{Duration, Instant};
+
+use serde::Deserialize;
+use serde_json::{Value, json};
+
+use crate::diagnose::engine::{DiagnoseConfig, DiagnoseError, Diagnosis};
+use crate::diagnose::output::DiagnosisOut;
+use crate::diagnose::structure::{Structure, StructureChoice, select_for_record};
+use crate::identify::frequency::analysis::{Analysis, AnalysisOptions, analyse};
+use crate::identify::frequency::{FrequencyError, SineRecord};
+use crate::identify::mrgia::{Estimate, MrgiaConfig};
+use crate::identify::oe::online::OnlineEstimator;
+use crate::identify::oe::{
+    self, OeConfig, OeError, OeFit, StdErr, Uncertainty, estimate_of, param_names, plant_of,
+};
+use crate::plant::{MAX_DELAY, ParamError, Plant, PlantOutput, PlantParams};
+
+/// Why a computation could not run: the message names what was wrong.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ApiError {
+    /// The arrays: lengths, non-finite values.
+    #[error("{0}")]
+    Record(String),
+    /// A setting outside its range.
+    #[error("{0}")]
+    Setting(String),
+    #[error(transparent)]
+    Param(#[from] ParamError),
+    #[error(transparent)]
+    Oe(#[from] OeError),
+    #[error(transparent)]
+    Diagnose(#[from] DiagnoseError),
+    #[error(transparent)]
+    Frequency(#[from] FrequencyError),
+}
+
+/// Checks named arrays of one record: the same length, every value finite, at least `min` samples. Returns the
+/// length.
+pub fn check_record(arrays: &[(&str, &[f64])], min: usize) -> Result<usize, ApiError> {
+    let Some(&(first, a0)) = arrays.first() else {
+        return Ok(0);
+    };
+    for &(name, a) in &arrays[1..] {
+        if a.len() != a0.len() {
+            return Err(ApiError::Record(format!(
+                "{first} has {} samples and {name} {}: they must be the same length",
+                a0.len(),
+                a.len()
+            )));
+        }
+    }
+    for &(name, a) in arrays {
+        if let Some(k) = a.iter().position(|v| !v.is_finite()) {
+            return Err(ApiError::Record(format!(
+                "{name}[{k}] is {}: every sample must be a finite number",
+                a[k]
+            )));
+        }
+    }
+    if a0.len() < min {
+        return Err(ApiError::Record(format!(
+            "{} samples are too few: at least {min} are needed",
+            a0.len()
+        )));
+    }
+    Ok(a0.len())
+}
+
+/// Plant parameters by the plant FMU's names (`a` and `b` as lists); unset ones are paper 000's example.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlantSpec {
+    /// a1..a_na (na is their number, at most 4).
+    pub a: Option<Vec<f64>>,
+    /// b0..b_nb (nb + 1 values, 1 to 5).
+    pub b: Option<Vec<f64>>,
+    pub delay: Option<usize>,
+    pub m1: Option<f64>,
+    pub m2: Option<f64>,
+    pub c1: Option<f64>,
+    pub c2: Option<f64>,
+    pub noise_std: Option<f64>,
+    pub noise_seed: Option<u64>,
+}
+
+impl PlantSpec {
+    /// The parameters, checked.
+    pub fn params(&self) -> Result<PlantParams, ApiError> {
+        let mut p = PlantParams::PAPER;
+        if let Some(a) = &self.a {
+            if a.len() > 4 {
+                return Err(ApiError::Setting(format!(
+                    "a has {} coefficients; at most 4 (a1 to a4) are supported",
+                    a.len()
+                )));
+            }
+            p.arx.na = a.len();
+            p.arx.a = [0.0; 4];
+            p.arx.a[..a.len()].copy_from_slice(a);
+        }
+        if let Some(b) = &self.b {
+            if b.is_empty() || b.len() > 5 {
+                return Err(ApiError::Setting(format!(
+                    "b has {} coefficients; 1 to 5 (b0 to b4) are supported",
+                    b.len()
+                )));
+            }
+            p.arx.nb = b.len() - 1;
+            p.arx.b = [0.0; 5];
+            p.arx.b[..b.len()].copy_from_slice(b);
+        }
+        p.arx.delay = self.delay.unwrap_or(p.arx.delay);
+        p.backlash.m1 = self.m1.unwrap_or(p.backlash.m1);
+        p.backlash.m2 = self.m2.unwrap_or(p.backlash.m2);
+        p.backlash.c1 = self.c1.unwrap_or(p.backlash.c1);
+        p.backlash.c2 = self.c2.unwrap_or(p.backlash.c2);
+        p.noise_std = self.noise_std.unwrap_or(p.noise_std);
+        p.noise_seed = self.noise_seed.unwrap_or(p.noise_seed);
+        p.validate()?;
+        Ok(p)
+    }
+}
+
+/// The plant on an input sequence (as `backlash simulate`): the outputs of every sample.
+pub fn simulate(spec: &PlantSpec, u: &[f64]) -> Result<Vec<PlantOutput>, ApiError> {
+    check_record(&[("u", u)], 0)?;
+    Ok(Plant::simulate(spec.params()?, u)?)
+}
+
+/// MRGIA's setting: paper 000's or the project's recommended one, with any value replaced.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MrgiaSettings {
+    pub recommended: bool,
+    /// Refine on-line to the output-error accuracy after a warm-up, with standard errors (the estimator FMU's
+    /// `refine`).
+    pub refine: bool,
+    pub p0: Option<f64>,
+    pub rho_exp: Option<f64>,
+    pub rho_min: Option<f64>,
+    pub eps: Option<f64>,
+    pub sigma0: Option<f64>,
+    pub c_init: Option<f64>,
+}
+
+impl MrgiaSettings {
+    /// `paper` or `recommended`, with `, refine` when refining.
+    pub fn name(&self) -> &'static str {
+        match (self.recommended, self.refine) {
+            (true, false) => "recommended",
+            (false, false) => "paper",
+            (true, true) => "recommended, refine",
+            (false, true) => "paper, refine",
+        }
+    }
+
+    /// The estimator's configuration for a structure, checked.
+    pub fn config(&self, na: usize, nb: usize, delay: usize) -> Result<MrgiaConfig, ApiError> {
+        let base = if self.recommended {
+            MrgiaConfig::recommended(na, nb, delay)
+        } else {
+            MrgiaConfig::paper(na, nb, delay)
+        };
+        let cfg = MrgiaConfig {
+            p0: self.p0.unwrap_or(base.p0),
+            rho_exp: self.rho_exp.unwrap_or(base.rho_exp),
+            rho_min: self.rho_min.unwrap_or(base.rho_min),
+            eps: self.eps.unwrap_or(base.eps),
+            sigma0: self.sigma0.unwrap_or(base.sigma0),
+            c_init: self.c_init.unwrap_or(base.c_init),
+            ..base
+        };
+        cfg.validate()?;
+        Ok(cfg)
+    }
+}
+
+/// The JSON of `identify mrgia` for an estimator that has seen `samples` samples, `updates` of them updating;
+/// a refining estimator adds `refine` and `std_err` (as the FMU's `*_se` outputs: 0 while unknown, during the
+/// warm-up).
+pub fn mrgia_json(est: &OnlineEstimator, samples: u64, updates: u64, setting: &str) -> Value {
+    let e = est.estimate();
+    let cfg = est.config();
+    let mut out = json!({
+        "method": "mrgia",
+        "a": e.a,
+        "b": e.b,
+        "m1": e.m1,
+        "m2": e.m2,
+        "c1": e.c1,
+        "c2": e.c2,
+        "samples": samples,
+        "updates": updates,
+        "setting": setting,
+        "config": cfg,
+    });
+    if est.refining_kind() {
+        out["refine"] = json!(true);
+        let se: Vec<f64> = (0..cfg.n_params()).map(|i| est.std_err_at(i)).collect();
+        out["std_err"] = json!(StdErr::from_flat(cfg.na, cfg.nb, &se));
+    }
+    out
+}
+
+/// MRGIA over a whole record: the JSON of `identify mrgia`. `progress(done, total)` is called every `every`
+/// samples and at the end.
+pub fn identify_mrgia(
+    u: &[f64],
+    y: &[f64],
+    na: usize,
+    nb: usize,
+    delay: usize,
+    settings: &MrgiaSettings,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Value, ApiError> {
+    let n = check_record(&[("u", u), ("y", y)], 1)?;
+    let mut est = OnlineEstimator::new(settings.config(na, nb, delay)?, settings.refine)?;
+    let every = (n / 100).max(1);
+    let mut updates = 0u64;
+    for (k, (&uk, &yk)) in u.iter().zip(y).enumerate() {
+        updates += u64::from(est.update(uk, yk).updating);
+        if (k + 1) % every == 0 {
+            progress(k + 1, n);
+        }
+    }
+    if n % every != 0 {
+        progress(n, n);
+    }
+    Ok(mrgia_json(&est, n as u64, updates, settings.name()))
+}
+
+/// The settings of `identify oe`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OeOptions {
+    /// The declared structure; `None`: chosen from the data.
+    pub structure: Option<Structure>,
+    /// The longest delay the structure selection tries (1 to 64).
+    pub max_delay: usize,
+    /// Start only from MRGIA's recommended estimate.
+    pub single_start: bool,
+    /// Levenberg-Marquardt iterations per start (default: the fit's own).
+    pub max_iter: Option<usize>,
+    /// The Cramer-Rao bound at the fitted model for this noise std.
+    pub crb_noise_std: Option<f64>,
+}
+
+impl Default for OeOptions {
+    fn default() -> Self {
+        Self {
+            structure: None,
+            max_delay: 10,
+            single_start: false,
+            max_iter: None,
+            crb_noise_std: None,
+        }
+    }
+}
+
+/// An output-error fit with what the command reports beside it.
+#[derive(Debug, Clone)]
+pub struct OeRun {
+    pub structure: StructureChoice,
+    pub cfg: OeConfig,
+    pub fit: OeFit,
+    /// The Cramer-Rao bound asked for with [`OeOptions::crb_noise_std`].
+    pub bound: Option<Uncertainty>,
+    /// Wall-clock time of the fit.
+    pub seconds: f64,
+}
+
+/// The output-error fit of `identify oe`: the structure (declared or chosen), the fit, the bound.
+pub fn identify_oe(u: &[f64], y: &[f64], opts: &OeOptions) -> Result<OeRun, ApiError> {
+    check_record(&[("u", u), ("y", y)], 0)?;
+    if !(1..=MAX_DELAY).contains(&opts.max_delay) {
+        return Err(ApiError::Setting(format!(
+            "the longest delay to try, {}, must be between 1 and {MAX_DELAY}",
+            opts.max_delay
+        )));
+    }
+    let structure = match opts.structure {
+        Some(s) => StructureChoice::declared(s),
+        None => select_for_record(u, y, opts.max_delay),
+    };
+    let s = structure.chosen;
+    let mut cfg = OeConfig::new(s.na, s.nb, s.delay);
+    cfg.extra_starts = !opts.single_start;
+    if let Some(m) = opts.max_iter {
+        cfg.max_iter = m;
+    }
+    cfg.validate()?;
+    let started = Instant::now();
+    let fit = oe::fit(&cfg, u, y)?;
+    let seconds = started.elapsed().as_secs_f64();
+    let bound = match opts.crb_noise_std {
+        Some(s) => Some(oe::crb(&plant_of(&fit.estimate, cfg.delay)?, u, s)?),
+        None => None,
+    };
+    Ok(OeRun {
+        structure,
+        cfg,
+        fit,
+        bound,
+        seconds,
+    })
+}
+
+impl OeRun {
+    /// What a plan is based on: the bound when one was asked for, else the fit's standard errors.
+    pub fn plan_basis(&self) -> &Uncertainty {
+        self.bound.as_ref().unwrap_or(&self.fit.uncertainty)
+    }
+
+    /// The JSON of `identify oe`, with a plan for `target_rel` when given.
+    pub fn json(&self, target_rel: Option<f64>) -> Result<Value, ApiError> {
+        let (f, s) = (&self.fit, self.structure.chosen);
+        let mut out = estimate_json(&f.estimate);
+        let extra = json!({
+            "method": "oe",
+            "samples": f.samples,
+            "std_err": f.std_err,
+            "sigma": f.sigma,
+            "rmse": f.rmse,
+            "cost": f.cost,
+            "iterations": f.iterations,
+            "converged": f.converged,
+            "modes": {"up": f.modes[0], "down": f.modes[1], "held": f.modes[2]},
+            "start": {
+                "method": f.start_method,
+                "rmse": f.start_rmse,
+                "estimate": estimate_json(&f.start),
+            },
+            "covariance": f.uncertainty.covariance,
+            "names": param_names(self.cfg.na, self.cfg.nb),
+            "seconds": self.seconds,
+            "config": self.cfg,
+            "na": s.na,
+            "nb": s.nb,
+            "delay": s.delay,
+            "structure": self.structure,
+        });
+        merge(&mut out, extra);
+        if let Some(c) = &self.bound {
+            out["crb"] = json!({"noise_std": c.noise_std, "std": c.std_err()});
+        }
+        if let Some(r) = target_rel {
+            out["plan"] = plan_json(self.plan_basis(), r)?;
+        }
+        Ok(out)
+    }
+}
+
+/// The noise of a Cramer-Rao bound: its standard deviation, or a signal-to-noise ratio std(w) / noise std.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CrbNoise {
+    Std(f64),
+    Snr(f64),
+}
+
+/// The bound of `backlash crb` with each parameter's relative standard deviation (`None` for a zero value).
+#[derive(Debug, Clone)]
+pub struct CrbRun {
+    pub truth: PlantParams,
+    pub bound: Uncertainty,
+    pub rel: Vec<Option<f64>>,
+}
+
+/// The Cramer-Rao bound of the output-error model of `truth` (its noise settings are ignored) on input `u`.
+pub fn crb(u: &[f64], truth: &PlantSpec, noise: CrbNoise) -> Result<CrbRun, ApiError> {
+    check_record(&[("u", u)], 0)?;
+    let truth = PlantParams {
+        noise_std: 0.0,
+        noise_seed: 0,
+        ..truth.params()?
+    };
+    let noise_std = match noise {
+        CrbNoise::Std(s) => s,
+        CrbNoise::Snr(r) => {
+            if !(r.is_finite() && r > 0.0) {
+                return Err(ApiError::Setting(format!(
+                    "the signal-to-noise ratio {r} must be a positive finite number"
+                )));
+            }
+            let w = oe::simulate(&estimate_of(&truth), truth.arx.delay, u)?;
+            crate::stats::std_dev(&w) / r
+        }
+    };
+    let bound = oe::crb(&truth, u, noise_std)?;
+    let rel = bound
+        .std
+        .iter()
+        .zip(&bound.theta)
+        .map(|(s, t)| (*t != 0.0).then(|| s / t.abs()))
+        .collect();
+    Ok(CrbRun { truth, bound, rel })
+}
+
+impl CrbRun {
+    /// The JSON of `backlash crb`; `input` names where the input came from.
+    pub fn json(&self, input: &str, target_rel: Option<f64>) -> Result<Value, ApiError> {
+        let c = &self.bound;
+        let mut out = json!({
+            "method": "crb",
+            "input": input,
+            "samples": c.samples,
+            "noise_std": c.noise_std,
+            "truth": estimate_json(&estimate_of(&self.truth)),
+            "std": c.std_err(),
+            "rel_std": named(&c.names, &self.rel),
+            "covariance": c.covariance,
+            "names": c.names,
+        });
+        if let Some(r) = target_rel {
+            out["plan"] = plan_json(c, r)?;
+        }
+        Ok(out)
+    }
+}
+
+/// The estimate under the contract's names.
+pub fn estimate_json(e: &Estimate) -> Value {
+    json!({"a": e.a, "b": e.b, "m1": e.m1, "m2": e.m2, "c1": e.c1, "c2": e.c2})
+}
+
+/// `{"a1": v, ...}` for per-parameter values in theta order.
+fn named<T: serde::Serialize>(names: &[String], v: &[T]) -> Value {
+    Value::Object(
+        names
+            .iter()
+            .zip(v)
+            .map(|(n, x)| (n.clone(), json!(x)))
+            .collect(),
+    )
+}
+
+/// The samples each parameter needs for a relative standard deviation of `target` (1/sqrt(N) scaling).
+fn plan_json(unc: &Uncertainty, target: f64) -> Result<Value, ApiError> {
+    let (per, all) = unc.samples_for(target)?;
+    Ok(json!({
+        "target_rel": target,
+        "basis_samples": unc.samples,
+        "basis_noise_std": unc.noise_std,
+        "samples": named(&unc.names, &per),
+        "samples_all": all,
+    }))
+}
+
+/// Adds the keys of `extra` to the object `out`.
+fn merge(out: &mut Value, extra: Value) {
+    if let (Value::Object(o), Value::Object(e)) = (out, extra) {
+        o.extend(e);
+    }
+}
+
+/// What `identify frequency` prints with every result: what a frequency estimate means.
+pub const FREQUENCY_CONVENTION: &str = "phase in [0, pi): the model (G, F) if -arg G(jw) mod 2pi is in [0, pi), else its dual \
+     (-G, F[-x]) (paper 003 eqs. (6)-(7)); scaled by eqs. (29)-(30a) so that sum_i |a_i|^(n/i) = 1 for the \
+     reported ascending border, gain = |G(jw)|/K";
+
+/// Paper 003 on one sine experiment: the analysis of `identify frequency`.
+pub fn identify_frequency(
+    time: &[f64],
+    u: Option<&[f64]>,
+    y: &[f64],
+    opts: &AnalysisOptions,
+) -> Result<Analysis, ApiError> {
+    match u {
+        Some(u) => check_record(&[("time", time), ("u", u), ("y", y)], 0)?,
+        None => check_record(&[("time", time), ("y", y)], 0)?,
+    };
+    if let Some(k) = time.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(ApiError::Record(format!(
+            "time[{}] = {} does not increase after time[{k}] = {}",
+            k + 1,
+            time[k + 1],
+            time[k]
+        )));
+    }
+    Ok(analyse(&SineRecord { time, u, y }, opts)?)
+}
+
+/// The JSON of `identify frequency`.
+pub fn frequency_json(a: &Analysis) -> Value {
+    let mut out = json!({"method": "frequency", "convention": FREQUENCY_CONVENTION});
+    merge(
+        &mut out,
+        serde_json::to_value(a).expect("an analysis serialises"),
+    );
+    out
+}
+
+/// The settings of `backlash diagnose` that do not concern a file.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DiagnoseOptions {
+    /// The declared structure; `None`: chosen from the data.
+    pub structure: Option<Structure>,
+    /// The longest delay the structure selection tries.
+    pub max_delay: usize,
+    /// Share of the record used for fitting (0.3 to 0.95).
+    pub fit_fraction: f64,
+    /// Seed of the fit's perturbed restarts.
+    pub seed: u64,
+    /// The most effects the loop adds (1 to 9).
+    pub max_effects: usize,
+    /// Wall-clock budget in seconds (0 < budget <= 1e6).
+    pub time_budget: f64,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        let d = DiagnoseConfig::auto();
+        Self {
+            structure: None,
+            max_delay: d.max_delay,
+            fit_fraction: d.fit_fraction,
+            seed: d.seed,
+            max_effects: d.max_effects,
+            time_budget: d.time_budget.as_secs_f64(),
+        }
+    }
+}
+
+impl DiagnoseOptions {
+    /// The engine's configuration, checked where the engine does not check.
+    pub fn config(&self) -> Result<DiagnoseConfig, ApiError> {
+        let t = self.time_budget;
+        if !(t.is_finite() && t > 0.0 && t <= 1e6) {
+            return Err(ApiError::Setting(format!(
+                "the time budget {t} must be a number of seconds between 0 and 1000000 (not 0)"
+            )));
+        }
+        Ok(DiagnoseConfig {
+            structure: self.structure,
+            max_delay: self.max_delay,
+            fit_fraction: self.fit_fraction,
+            seed: self.seed,
+            max_effects: self.max_effects,
+            time_budget: Duration::from_secs_f64(t),
+            ..DiagnoseConfig::auto()
+        })
+    }
+}
+
+/// `backlash diagnose` on a record.
+pub fn diagnose(u: &[f64], y: &[f64], opts: &DiagnoseOptions) -> Result<Diagnosis, ApiError> {
+    check_record(&[("u", u), ("y", y)], 0)?;
+    Ok(crate::diagnose::engine::diagnose(u, y, &opts.config()?)?)
+}
+
+/// The JSON of `backlash diagnose` for a record with sample period `ts` (when known), without what belongs
+/// to a file.
+pub fn diagnosis_json(d: &Diagnosis, ts: Option<f64>) -> Value {
+    let mut out = serde_json::to_value(DiagnosisOut::new(d, ts)).expect("a diagnosis serialises");
+    out["Ts"] = json!(ts);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn records_are_refused_with_the_array_and_sample_named() {
+        let u = [1.0, 2.0, f64::NAN];
+        let y = [1.0, 2.0];
+        let e = check_record(&[("u", &u), ("y", &y)], 0).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "u has 3 samples and y 2: they must be the same length"
+        );
+        let e = check_record(&[("u", &u), ("y", &u)], 0).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "u[2] is NaN: every sample must be a finite number"
+        );
+        let e = check_record(&[("u", &y)], 3).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "2 samples are too few: at least 3 are needed"
+        );
+        assert_eq!(check_record(&[("u", &y), ("y", &y)], 2), Ok(2));
+    }
+
+    #[test]
+    fn plant_spec_refuses_too_many_coefficients_and_keeps_the_paper_defaults() {
+        let spec = PlantSpec {
+            a: Some(vec![0.1; 5]),
+            ..PlantSpec::default()
+        };
+        assert!(spec.params().unwrap_err().to_string().contains("at most 4"));
+        assert_eq!(PlantSpec::default().params().unwrap(), PlantParams::PAPER);
+    }
+}

@@ -1,0 +1,212 @@
+"""The Python package as users install it (CI runs this file in a fresh virtual environment holding only the
+wheel, numpy, fmpy and pytest): the API gives the program's JSON on the same records, the packaged FMUs
+simulate in FMPy, diagnose names an effect, and bad arrays are refused with a message that says what is wrong.
+"""
+import json
+import pathlib
+import subprocess
+import sys
+import sysconfig
+import threading
+import time
+
+import numpy as np
+import pytest
+from fmpy import simulate_fmu
+from fmpy.validation import validate_fmu
+
+import backlash_fmu
+from backlash_fmu import cosim
+from conftest import ROOT
+
+PAPER = dict(na=2, nb=0, delay=1)
+
+
+def _record(n, seed, noise_std=0.01, **plant):
+    u = cosim.paper_input(n, seed)
+    y = backlash_fmu.simulate(u, noise_std=noise_std, noise_seed=seed, **plant)["y"]
+    return u, y
+
+
+def _csv(path, u, y, time=None):
+    """time = 0, 1, 2, ... unless given; numbers in their shortest exact form, so the program reads the API's
+    floats."""
+    time = np.arange(len(u), dtype=float) if time is None else time
+    with open(path, "w") as f:
+        f.write("time,u,y\n")
+        for t, a, b in zip(time.tolist(), u.tolist(), y.tolist()):
+            f.write(f"{t!r},{a!r},{b!r}\n")
+    return str(path)
+
+
+def _cli_json(cli, *args):
+    out = subprocess.run([cli, *map(str, args), "--json"], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout)
+
+
+def _same(api, program, ignore=("file", "seconds")):
+    """Equal key for key (numbers exactly), apart from the file's name and wall-clock times."""
+    assert api.keys() == program.keys()
+    for k in api.keys() - set(ignore):
+        assert api[k] == program[k], k
+
+
+def test_the_package_is_the_installed_one():
+    here = pathlib.Path(backlash_fmu.__file__).resolve()
+    assert ROOT / "python" not in here.parents, f"{here}: imported from the source tree, not the installation"
+
+
+def test_mrgia_equals_the_program(cli, tmp_path):
+    u, y = _record(3000, 1)
+    data = _csv(tmp_path / "r.csv", u, y)
+    for recommended in (False, True):
+        api = backlash_fmu.identify_mrgia(u, y, 2, 0, 1, recommended=recommended)
+        flags = ["--recommended"] if recommended else []
+        _same(api, _cli_json(cli, "identify", "mrgia", data, "--na", 2, "--nb", 0, "--delay", 1, *flags))
+    assert abs(api["c1"] - 0.5) < 0.05 and api["file"] is None
+
+
+def test_oe_crb_and_frequency_equal_the_program(cli, tmp_path):
+    u, y = _record(600, 2)
+    data = _csv(tmp_path / "r.csv", u, y)
+    api = backlash_fmu.identify_oe(u, y, **PAPER, target_rel=0.01)
+    _same(api, _cli_json(cli, "identify", "oe", data, "--na", 2, "--nb", 0, "--delay", 1, "--target-rel", 0.01))
+    assert abs(api["c2"] - 1.0) < 0.05
+
+    bound = backlash_fmu.crb(u, snr=43.0, c1=0.4, a=[0.45, 0.55])
+    program = _cli_json(cli, "crb", data, "--snr", 43, "--c1", 0.4, "--a", "0.45,0.55")
+    _same(bound, program, ignore=("input",))
+    assert bound["input"] == "array" and bound["truth"]["c1"] == 0.4
+
+    t = np.arange(0, 40, 0.01)
+    us = 2.0 * np.cos(1.5 * t)
+    ys = backlash_fmu.simulate(us, a=[0.5], b=[0.5], c1=0.2, c2=0.2, m2=1.0)["y"]
+    sine = _csv(tmp_path / "sine.csv", us, ys, time=t)
+    freq = backlash_fmu.identify_frequency(t, us, ys)
+    _same(freq, _cli_json(cli, "identify", "frequency", sine))
+    assert freq["method"] == "frequency" and freq["degree"] >= 1
+
+
+def test_diagnose_names_the_effect_the_declared_model_lacks_as_the_program_does(cli, tmp_path):
+    """The plant's true delay is 3; the declared model has 1: the diagnosis says `extra-delay`."""
+    u, y = _record(1500, 3, noise_std=0.02, delay=3)
+    api = backlash_fmu.diagnose(u, y, **PAPER, ts=1.0, max_effects=1, time_budget=60)
+    assert api["effect"]["id"] == "extra-delay", api["effect"]
+    data = _csv(tmp_path / "r.csv", u, y)
+    program = _cli_json(cli, "diagnose", data, "--na", 2, "--nb", 0, "--delay", 1, "--max-effects", 1,
+                        "--time-budget", 60)
+    _same(api, program, ignore=("file",))
+
+
+def test_simulate_equals_the_packaged_plant_fmu_in_fmpy():
+    fmu = backlash_fmu.fmu_path("BacklashPlant")
+    assert validate_fmu(fmu) == []
+    u = cosim.paper_input(500, 4)
+    params = dict(c1=0.3, c2=0.7, m2=1.2, noise_std=0.01, noise_seed=9)
+    api = backlash_fmu.simulate(u, a=[0.45, 0.55], b=[0.8], **params)
+    inp = np.array(list(zip(np.arange(500.0), u)), dtype=[("time", float), ("u", float)])
+    res = simulate_fmu(fmu, stop_time=499, output_interval=1, input=inp, start_values=params,
+                       output=["x", "w", "y"])
+    for name in ("x", "w", "y"):
+        np.testing.assert_allclose(res[name], api[name], rtol=0, atol=1e-12, err_msg=name)
+
+
+def test_packaged_estimator_fmu_in_a_pair_equals_identify_mrgia():
+    u = cosim.paper_input(2000, 5)
+    r = cosim.run_pair(backlash_fmu.fmu_path("BacklashPlant"), backlash_fmu.fmu_path("MrgiaEstimator"), u,
+                       plant_start={"noise_std": 0.01, "noise_seed": 5}, checkpoints=[2000])
+    assert validate_fmu(backlash_fmu.fmu_path("MrgiaEstimator")) == []
+    j = backlash_fmu.identify_mrgia(u, r["y"], 2, 0, 1)
+    est = dict(zip(r["names"], r["estimates"][-1]))
+    api = dict(a1=j["a"][0], a2=j["a"][1], b0=j["b"][0], m2=j["m2"], c1=j["c1"], c2=j["c2"])
+    for name in cosim.CHECKED:
+        assert abs(api[name] - est[name]) <= 1e-12, name
+
+
+def test_fmu_path_names_what_it_has():
+    with pytest.raises(ValueError, match="unknown FMU 'Plant': the package has BacklashPlant and MrgiaEstimator"):
+        backlash_fmu.fmu_path("Plant")
+    with pytest.raises(ValueError, match="must be 2 or 3"):
+        backlash_fmu.fmu_path("BacklashPlant", fmi_version=1)
+    try:
+        path = backlash_fmu.fmu_path("BacklashPlant", fmi_version=3)
+    except FileNotFoundError as e:
+        assert "no FMI 3.0 BacklashPlant.fmu" in str(e)
+    else:
+        assert validate_fmu(path) == []
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda u, y: backlash_fmu.identify_mrgia(u, y[:-1], 2, 0, 1),
+     r"u has 400 samples and y 399: they must be the same length"),
+    (lambda u, y: backlash_fmu.identify_oe(np.where(np.arange(400) == 17, np.nan, u), y, **PAPER),
+     r"u\[17\] is NaN: every sample must be a finite number"),
+    (lambda u, y: backlash_fmu.diagnose(u, np.where(np.arange(400) == 3, np.inf, y)),
+     r"y\[3\] is inf: every sample must be a finite number"),
+    (lambda u, y: backlash_fmu.diagnose(u[:50], y[:50], **PAPER),
+     r"50 samples: at least 160 are needed"),
+    (lambda u, y: backlash_fmu.identify_mrgia(u[:0], y[:0], 2, 0, 1),
+     r"0 samples are too few: at least 1 are needed"),
+    (lambda u, y: backlash_fmu.identify_mrgia(u, y, 7, 0, 1), r"na.*7.*between 0 and 4"),
+    (lambda u, y: backlash_fmu.identify_oe(u, y, na=2), r"give all three of na, nb and delay"),
+    (lambda u, y: backlash_fmu.simulate(np.column_stack([u, u])), r"u must be one-dimensional"),
+    (lambda u, y: backlash_fmu.simulate(u, c3=1.0), r"unknown field `c3`"),
+    (lambda u, y: backlash_fmu.simulate(u, a=[0.1] * 5), r"a has 5 coefficients; at most 4"),
+    (lambda u, y: backlash_fmu.crb(u), r"give one of noise_std and snr"),
+    (lambda u, y: backlash_fmu.diagnose(u, y, time_budget=0), r"time budget 0 must be"),
+])
+def test_bad_arguments_raise_value_error_with_the_librarys_message(call, message):
+    u, y = _record(400, 6)
+    with pytest.raises(ValueError, match=message):
+        call(u, y)
+
+
+def test_long_calls_release_the_gil_and_report_progress():
+    u, y = _record(2_000_000, 7, noise_std=0.0)
+    calls = []
+    t0 = time.perf_counter()
+    backlash_fmu.identify_mrgia(u, y, 2, 0, 1, progress=lambda done, total: calls.append((done, total)))
+    alone = time.perf_counter() - t0
+    assert len(calls) == 100 and calls[-1] == (2_000_000, 2_000_000)
+    assert all(a[0] < b[0] for a, b in zip(calls, calls[1:]))
+
+    worker = threading.Thread(target=backlash_fmu.identify_mrgia, args=(u, y, 2, 0, 1))
+    stamps = [time.perf_counter()]
+    worker.start()
+    while worker.is_alive():
+        stamps.append(time.perf_counter())
+    worker.join()
+    gaps = np.diff(stamps)
+    # Holding the GIL, the call would stop this loop for its whole duration.
+    assert gaps.max() < alone / 3, (gaps.max(), alone)
+
+
+def test_the_backlash_command_is_the_program(cli, tmp_path):
+    command = pathlib.Path(sysconfig.get_path("scripts")) / "backlash"
+    assert command.is_file(), f"{command}: the package installs no backlash command"
+    help_text = subprocess.run([command, "--help"], capture_output=True, text=True, check=True).stdout
+    assert "diagnose" in help_text and "identify" in help_text
+    u, y = _record(800, 8)
+    data = _csv(tmp_path / "r.csv", u, y)
+    args = ["identify", "mrgia", data, "--na", "2", "--nb", "0", "--delay", "1", "--json"]
+    mine = subprocess.run([command, *args], capture_output=True, text=True, check=True).stdout
+    assert mine == subprocess.run([cli, *args], capture_output=True, text=True, check=True).stdout
+    bad = subprocess.run([command, "identify", "mrgia", str(tmp_path / "missing.csv"), "--na", "2", "--nb", "0",
+                          "--delay", "1"], capture_output=True, text=True)
+    assert bad.returncode == 1 and "missing.csv" in bad.stderr
+
+
+def test_the_study_runs_as_a_module():
+    out = subprocess.run([sys.executable, "-m", "backlash_fmu.study", "--help"], capture_output=True, text=True,
+                         check=True).stdout
+    assert "--scheduler" in out
+
+
+def test_the_readme_example_runs_as_written(capsys):
+    text = (ROOT / "README.md").read_text()
+    section = text[text.index("\n## Python\n"):]
+    start = section.index("```python\n") + len("```python\n")
+    code = section[start:section.index("```", start)]
+    exec(compile(code, "README.md (Python example)", "exec"), {})
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].split()[0] == "3" and out[1] == "extra-delay", out
