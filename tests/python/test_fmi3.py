@@ -13,7 +13,7 @@ from fmpy.validation import validate_fmu
 
 import reference
 from conftest import LOG3
-from cosim import _callbacks, _Slave, max_rel_error, paper_input, run_pair
+from backlash_fmu.cosim import _callbacks, _Slave, max_rel_error, paper_input, run_pair
 
 # Every function of the standard's fmi3Functions.h: the common and co-simulation functions, and those of model
 # exchange and scheduled execution (answering "not provided"), since FMPy loads all of them whatever the interface.

@@ -10,7 +10,7 @@ import subprocess
 import numpy as np
 
 import reference
-from cosim import CHECKED, PAPER_TRUTH, max_rel_error, paper_input, run_pair
+from backlash_fmu.cosim import CHECKED, PAPER_TRUTH, max_rel_error, paper_input, run_pair
 
 WARMUP = 500  # samples of plain MRGIA before the recursion starts (identify::oe::online::WARMUP)
 
