@@ -3,9 +3,10 @@
 
 Records: the paper-000 plant (a = 0.45, 0.55; b = 0.8; delay 1; m1 = 1, m2 = 1.5) with gaps that drift
 by +50% over the record (c1 0.5 -> 0.75, c2 1.0 -> 1.5: the `gap-drift` effect), a random-phase multisine
-plus uniform input, SNR 43. For each length the two commands run alternately (`--repeat` times each) and
-the medians are compared: the ratio diagnose / identify oe, and the time per sample relative to the
-shortest record. Usage:
+plus uniform input, SNR 43. For each length the commands run alternately (`--repeat` times each) and the
+medians are compared like with like: diagnose with the structure declared against identify oe with it
+declared, diagnose choosing the structure against identify oe choosing it (both select on the same window of
+the fit part), and the time per sample relative to the shortest record. Usage:
 
     .venv/bin/python scripts/diagnose_cost.py                 # 1e5 and 1e6 samples, 3 repeats
     .venv/bin/python scripts/diagnose_cost.py --sizes 100000 300000 1000000 --repeat 5
@@ -86,6 +87,7 @@ def main() -> int:
             cmds = {
                 "identify oe": [a.backlash, "identify", "oe", str(f), *declared, "--json"],
                 "diagnose (declared)": [a.backlash, "diagnose", str(f), *declared, "--json"],
+                "identify oe (auto)": [a.backlash, "identify", "oe", str(f), "--json"],
                 "diagnose (auto)": [a.backlash, "diagnose", str(f), "--json"],
             }
             times: dict[str, list[float]] = {k: [] for k in cmds}
@@ -99,16 +101,18 @@ def main() -> int:
             med = {k: statistics.median(v) for k, v in times.items()}
             rows.append((n, med, answers))
     n0, med0, _ = rows[0]
-    print("| samples | identify oe [s] | diagnose declared [s] | ratio | diagnose auto [s] | ratio | per sample vs "
-          f"{n0} (declared / auto) | effect found (declared / auto) |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| samples | structure (na, nb, delay) | identify oe [s] | diagnose [s] | ratio | per sample vs "
+          f"{n0} | effects found |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
     for n, med, ans in rows:
-        oe = med["identify oe"]
-        dd, da = med["diagnose (declared)"], med["diagnose (auto)"]
-        per = (dd / n) / (med0["diagnose (declared)"] / n0), (da / n) / (med0["diagnose (auto)"] / n0)
-        eff = ans["diagnose (declared)"]["effect"]["id"], ans["diagnose (auto)"]["effect"]["id"]
-        print(f"| {n} | {oe:.2f} | {dd:.2f} | {dd / oe:.1f} | {da:.2f} | {da / oe:.1f} | {per[0]:.2f} / {per[1]:.2f} "
-              f"| {eff[0]} / {eff[1]} |")
+        for kind, oe_key, dg_key in (("declared", "identify oe", "diagnose (declared)"),
+                                     ("chosen", "identify oe (auto)", "diagnose (auto)")):
+            oe, dg = med[oe_key], med[dg_key]
+            per = (dg / n) / (med0[dg_key] / n0)
+            d = ans[dg_key]
+            found = " + ".join(e["id"] for e in d["effects"]) or "none"
+            print(f"| {n} | {kind} ({d['na']}, {d['nb']}, {d['delay']}) | {oe:.2f} | {dg:.2f} | {dg / oe:.1f} "
+                  f"| {per:.2f} | {found} |")
     print(f"\n(medians of {a.repeat} alternating runs on {os.cpu_count()} cores)")
     return 0
 

@@ -3,25 +3,29 @@
 # Python package's wheel in a fresh virtual environment.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Each step's start, in minutes and seconds since this script started (where CI time goes).
+step() { printf '== [%dm%02ds] %s\n' $((SECONDS / 60)) $((SECONDS % 60)) "$*"; }
+step "setup (system packages, the Python environment, the wheel)"
 bash scripts/setup.sh
 
-echo "== cargo fmt --check"
+step "cargo fmt --check"
 cargo fmt --check
-echo "== cargo clippy (the lints of Cargo.toml's [lints] table, warnings as errors)"
+step "cargo clippy (the lints of Cargo.toml's [lints] table, warnings as errors)"
 cargo clippy --workspace --all-targets -- -D warnings
-echo "== cargo doc (broken or private links in the documentation are errors)"
+step "cargo doc (broken or private links in the documentation are errors)"
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
-echo "== cargo build --release (both FMUs and the CLI)"
+step "cargo build --release (both FMUs and the CLI)"
 cargo build --release
-echo "== cargo test --release"
+step "cargo test --release"
 cargo test --release
-echo "== pytest (the package installed into .venv by setup.sh)"
-.venv/bin/python -m pytest -q tests/python --ignore=tests/python/test_api.py
-echo "== the wheel in a fresh virtual environment: the Python API tests against the installed package"
+step "pytest (the package installed into .venv by setup.sh)"
+.venv/bin/python -m pytest -q --durations=10 tests/python --ignore=tests/python/test_api.py
+step "the wheel in a fresh virtual environment: the Python API tests against the installed package"
 rm -rf target/wheel-venv
 python3 -m venv target/wheel-venv
 target/wheel-venv/bin/python -m pip install -q --disable-pip-version-check -c tests/python/requirements.txt \
     target/wheels/backlash_fmu-*.whl numpy fmpy pytest
 target/wheel-venv/bin/python -m pytest -q -p no:cacheprovider tests/python/test_api.py
-echo "== compliance: valgrind, fmutool, long fuzz, 1 GB file in bounded memory"
+step "compliance: valgrind, fmutool, long fuzz, 1 GB file in bounded memory"
 bash scripts/compliance.sh
+step "all tests passed"

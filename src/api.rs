@@ -546,8 +546,23 @@ impl DiagnoseOptions {
 
 /// `backlash diagnose` on a record.
 pub fn diagnose(u: &[f64], y: &[f64], opts: &DiagnoseOptions) -> Result<Diagnosis, ApiError> {
+    diagnose_with_progress(u, y, opts, &|_| {})
+}
+
+/// [`diagnose`], telling `progress` what it is doing at each stage (from any thread).
+pub fn diagnose_with_progress(
+    u: &[f64],
+    y: &[f64],
+    opts: &DiagnoseOptions,
+    progress: &(dyn Fn(&str) + Sync),
+) -> Result<Diagnosis, ApiError> {
     check_record(&[("u", u), ("y", y)], 0)?;
-    Ok(crate::diagnose::engine::diagnose(u, y, &opts.config()?)?)
+    Ok(crate::diagnose::engine::diagnose_with_progress(
+        u,
+        y,
+        &opts.config()?,
+        progress,
+    )?)
 }
 
 /// The JSON of `backlash diagnose` for a record with sample period `ts` (when known), without what belongs

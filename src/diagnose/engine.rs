@@ -32,8 +32,8 @@
 //!    significantly (Diebold-Mariano), and BIC on the fit part is lower; the lowest BIC among supported
 //!    deterministic extensions wins, coloured-noise only when none is supported. If the winner's own base
 //!    part fits the plain model better than the plain fit did (that fit stopped in a local minimum), the
-//!    plain model is refitted from there and the diagnosis repeated (at most twice), so that "before" is an
-//!    honest optimum.
+//!    plain model refitted from there becomes "before" (at most twice), so that it is an honest optimum, and
+//!    the round is judged again against it (the candidates already fitted are judged as they are).
 //!
 //! 7. **Loop**: the winner becomes the current model and steps 4 to 6 repeat on its residual:
 //!    the candidates are fitted on top of it (all parameters, the earlier effects' too, jointly: the last
@@ -56,8 +56,9 @@
 //!
 //! Exploration (screening a grid of starts, short runs from each) uses the first [`EXPLORE_SAMPLES`]
 //! samples of the fit part; only the best start is refined on the whole fit part, and that refinement stops
-//! when its step is below 0.1 standard errors (as `identify oe` does), so a long record costs a few
-//! simulations of its whole length per candidate. Every fit is bounded in iterations and simulations, and
+//! when its step is below 0.1 standard errors (as `identify oe` does) or after a few iterations, so a long
+//! record costs a few simulations of its whole length per candidate. A candidate with several structures
+//! (longer delays, higher orders, friction's two forms) refines only the best of them on the window. Every fit is bounded in iterations and simulations, and
 //! the whole diagnosis by a time budget ([`DiagnoseConfig::time_budget`]): candidates not fitted when it is
 //! spent are listed as not tried.
 //!
@@ -87,6 +88,9 @@ use super::statistics::{INPUT_LINE_RATIO, diebold_mariano, input_line_ratio};
 use super::structure::{self, InitialState, Structure, StructureChoice};
 use crate::plant::{MAX_DELAY, MAX_ORDER};
 use crate::stats::{rms, rms_diff, std_dev};
+
+/// The error kind of a candidate judged by its free-run simulation.
+const SIMULATION: &str = "simulation";
 
 /// Settings of a diagnosis.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -192,6 +196,9 @@ pub struct Candidate {
     /// Parameters estimated (base + extension) for the information criterion.
     pub k: usize,
     pub fit_rmse: f64,
+    /// Its fit-part cost (sum of squared errors of what it is judged by).
+    #[serde(skip)]
+    pub fit_cost: f64,
     pub bic: f64,
     /// BIC of the extension minus BIC of the current model (negative favours the extension).
     pub delta_bic: f64,
@@ -377,6 +384,17 @@ pub struct CrossValidation {
 
 /// Diagnose the record (u, y): choose or take the structure, fit, test, extend, decide.
 pub fn diagnose(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<Diagnosis, DiagnoseError> {
+    diagnose_with_progress(u, y, cfg, &|_| {})
+}
+
+/// [`diagnose`], telling `progress` what it is doing at each stage (a sentence such as "fitting the
+/// candidates of round 1 (3 of 8 done)"); `progress` may be called from any thread.
+pub fn diagnose_with_progress(
+    u: &[f64],
+    y: &[f64],
+    cfg: &DiagnoseConfig,
+    progress: &(dyn Fn(&str) + Sync),
+) -> Result<Diagnosis, DiagnoseError> {
     check_record(u, y, cfg)?;
     let n = u.len();
     let smallest = Structure {
@@ -397,7 +415,11 @@ pub fn diagnose(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<Diagnosis,
         ..cfg.lm
     };
     let n_fit = ((n as f64 * cfg.fit_fraction).round() as usize).clamp(1, n - 1);
-    let mut problem = Problem::new(u, y, n_fit, lm);
+    let mut problem = Problem {
+        progress,
+        ..Problem::new(u, y, n_fit, lm)
+    };
+    progress("choosing the initial state");
     let initial = structure::initial_state(
         &problem,
         &match cfg.structure {
@@ -408,27 +430,35 @@ pub fn diagnose(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<Diagnosis,
     problem.rest = initial.rest_for(u[0]);
     let choice = match cfg.structure {
         Some(s) => StructureChoice::declared(s),
-        None => structure::select(&problem, cfg.max_delay, n),
+        None => {
+            progress("choosing the structure (orders and delay)");
+            structure::select(&problem, cfg.max_delay, n)
+        }
     };
     let s = choice.chosen;
+    progress(&format!("fitting the linear model ({s})"));
     let linear = fit_linear(&problem, s).ok_or(DiagnoseError::NoFit)?;
-    let mut extra_starts: Vec<BaseModel> = Vec::new();
+    progress(&format!("fitting the backlash model ({s})"));
+    let mut base =
+        fit_plain(&problem, s, cfg.restarts, cfg.seed, &linear).ok_or(DiagnoseError::NoFit)?;
+    let mut fitted: Vec<Candidate> = Vec::new();
     let mut rounds = 0;
     loop {
         rounds += 1;
-        let base = fit_plain(&problem, s, cfg.restarts, cfg.seed, &linear, &extra_starts)
-            .ok_or(DiagnoseError::NoFit)?;
         let mut d = diagnose_from(
             &mut problem,
             cfg,
-            base.0,
+            base.0.clone(),
             &linear,
             choice.clone(),
             &initial,
-            rounds,
+            (rounds, &fitted),
         )?;
         // A winner whose own base part fits the plain model better means the plain fit stopped in a local
-        // minimum: refit from there (at most twice) so that "before" is honest.
+        // minimum: the plain model refitted from there (at most twice) becomes "before", so that it is an
+        // honest optimum, and the round is judged again against it. The candidates already fitted are
+        // fits of their own structures whatever the plain model is: they are judged again as they are, not
+        // refitted.
         if rounds < 3
             && let Some(c) = d.effect()
             && !c.model.exts.is_empty()
@@ -438,7 +468,8 @@ pub fn diagnose(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<Diagnosis,
                 problem.fit(&start, std::slice::from_ref(&start), Objective::Simulation)
                 && cost < base.1 * (1.0 - 1e-6)
             {
-                extra_starts.push(polished.base);
+                base = (polished, cost);
+                fitted = std::mem::take(&mut d.candidates);
                 continue;
             }
         }
@@ -490,6 +521,7 @@ fn extend(p: &Problem, cfg: &DiagnoseConfig, d: &mut Diagnosis) {
                 bic: last.bic,
                 penalty,
                 exclude: &kept,
+                fitted: &[],
             },
         );
         let next = found.chosen.map(|i| found.candidates[i].clone());
@@ -634,7 +666,7 @@ fn diagnose_from(
     linear: &(BaseModel, f64),
     structure: StructureChoice,
     initial: &InitialState,
-    rounds: usize,
+    (rounds, fitted): (usize, &[Candidate]),
 ) -> Result<Diagnosis, DiagnoseError> {
     let (u, y, n_fit) = (p.u, p.y, p.n_fit);
     let n = u.len();
@@ -661,6 +693,7 @@ fn diagnose_from(
             bic: base_bic,
             penalty: 0.0,
             exclude: &[],
+            fitted,
         },
     );
     Ok(Diagnosis {
@@ -689,7 +722,8 @@ fn diagnose_from(
 }
 
 /// The model a round extends, its simulation and residual over the whole record, its fit-part cost and BIC
-/// (with the structure penalties of the effects it has), and the effects not to try again.
+/// (with the structure penalties of the effects it has), the effects not to try again, and candidates
+/// already fitted on the same record (judged again against this model instead of being refitted).
 struct Current<'a> {
     model: &'a EffectModel,
     sim: &'a Simulation,
@@ -698,6 +732,7 @@ struct Current<'a> {
     bic: f64,
     penalty: f64,
     exclude: &'a [EffectId],
+    fitted: &'a [Candidate],
 }
 
 /// One round: test the current model's residual on the fit part, fit every candidate it points to on top
@@ -746,6 +781,15 @@ fn find(p: &Problem, cfg: &DiagnoseConfig, cur: Current) -> Found {
         .collect();
 
     let held = e[n_fit..].to_vec();
+    let round = cur.exclude.len() + 1;
+    let total = pointed.len();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let tell = |k: usize| {
+        (p.progress)(&format!(
+            "round {round}: fitting the candidates the residual points to ({k} of {total} done)"
+        ))
+    };
+    tell(0);
     let mrgia = |na: usize, nb: usize, delay: usize| p.mrgia_start(Structure { na, nb, delay });
     let ctx = Context {
         p,
@@ -769,11 +813,19 @@ fn find(p: &Problem, cfg: &DiagnoseConfig, cur: Current) -> Found {
     let results: Vec<Result<Option<Candidate>, EffectId>> = pointed
         .into_par_iter()
         .map(|(id, by)| {
-            if p.out_of_time() {
-                Err(id)
-            } else {
-                Ok(ctx.candidate(id, by))
-            }
+            let again = cur
+                .fitted
+                .iter()
+                .find(|c| c.id == id && c.error_kind == SIMULATION);
+            let result = match again {
+                Some(c) => {
+                    Ok(ctx.judge(id, by, (c.model.clone(), c.fit_cost, Objective::Simulation)))
+                }
+                None if p.out_of_time() => Err(id),
+                None => Ok(ctx.fit_candidate(id).and_then(|f| ctx.judge(id, by, f))),
+            };
+            tell(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
+            result
         })
         .collect();
     let mut candidates = Vec::new();
@@ -874,20 +926,22 @@ impl Context<'_, '_> {
             let cost = self.p.cost(&m, Objective::Prediction)?;
             return Some((m, cost, Objective::Prediction));
         }
-        let mut best: Option<(EffectModel, f64)> = None;
-        for alt in &plan.alternatives {
-            if let Some((m, c)) = self.p.fit(&alt.template, &alt.starts, plan.objective)
-                && best.as_ref().is_none_or(|b| c < b.1)
-            {
-                best = Some((m, c));
-            }
-        }
-        best.map(|(m, c)| (m, c, plan.objective))
+        let alternatives: Vec<(&EffectModel, &[EffectModel])> = plan
+            .alternatives
+            .iter()
+            .map(|alt| (&alt.template, alt.starts.as_slice()))
+            .collect();
+        let (m, c) = self.p.fit_alternatives(&alternatives, plan.objective)?;
+        Some((m, c, plan.objective))
     }
 
-    /// Fit and judge one candidate.
-    fn candidate(&self, id: EffectId, pointed_by: Vec<&'static str>) -> Option<Candidate> {
-        let (model, cost, obj) = self.fit_candidate(id)?;
+    /// Judge one fitted candidate (its model, fit-part cost and objective) against the current model.
+    fn judge(
+        &self,
+        id: EffectId,
+        pointed_by: Vec<&'static str>,
+        (model, cost, obj): (EffectModel, f64, Objective),
+    ) -> Option<Candidate> {
         let p = self.p;
         let n = p.u.len();
         let k = model.n_estimated();
@@ -940,13 +994,14 @@ impl Context<'_, '_> {
             pointed_by,
             k,
             fit_rmse: (cost / p.n_fit as f64).sqrt(),
+            fit_cost: cost,
             bic: bic_value,
             delta_bic,
             heldout_rmse,
             heldout_z,
             error_kind: match obj {
                 Objective::Prediction => "one-step prediction",
-                Objective::Simulation => "simulation",
+                Objective::Simulation => SIMULATION,
             },
             one_step,
             supported: judgement.supported,

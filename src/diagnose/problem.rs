@@ -57,6 +57,8 @@ pub(crate) struct Problem<'a> {
     pub y_scale: f64,
     pub x_scale: f64,
     pub lm: LmOptions,
+    /// Told what the diagnosis is doing, stage by stage (a progress display; may be called from any thread).
+    pub progress: &'a (dyn Fn(&str) + Sync),
 }
 
 impl<'a> Problem<'a> {
@@ -75,6 +77,7 @@ impl<'a> Problem<'a> {
             y_scale,
             x_scale: y_scale,
             lm,
+            progress: &|_| {},
         }
     }
 
@@ -188,16 +191,71 @@ impl<'a> Problem<'a> {
         starts: &[EffectModel],
         obj: Objective,
     ) -> Option<(EffectModel, f64)> {
+        let (th, _) = self.explore(template, starts, obj)?;
+        self.polish_from(template, &th, obj)
+    }
+
+    /// Fit several structures (each a template with its starts) and keep the lowest cost. On a long record
+    /// (exploration on a window) the structures are ranked by their explored cost on the window and only the
+    /// best is refined on the whole fit part: each refinement costs several simulations of the whole record,
+    /// and the ranking of structures that differ in a delay or an order is settled on the window already.
+    pub fn fit_alternatives(
+        &self,
+        alternatives: &[(&EffectModel, &[EffectModel])],
+        obj: Objective,
+    ) -> Option<(EffectModel, f64)> {
+        let explored = alternatives.iter().filter_map(|(template, starts)| {
+            Some((*template, self.explore(template, starts, obj)?))
+        });
+        if self.windowed() {
+            let (template, (th, _)) = explored.min_by(|a, b| a.1.1.total_cmp(&b.1.1))?;
+            return self.polish_from(template, &th, obj);
+        }
+        explored
+            .filter_map(|(template, (th, _))| self.polish_from(template, &th, obj))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
+    /// Explore `template`'s structure from `starts` on the exploration window: the packed parameters of the
+    /// best point and its cost there.
+    pub fn explore(
+        &self,
+        template: &EffectModel,
+        starts: &[EffectModel],
+        obj: Objective,
+    ) -> Option<(Vec<f64>, f64)> {
         let ts = self.time_scale;
         let packed: Vec<Vec<f64>> = starts.iter().map(|s| s.pack(ts)).collect();
         let unpack = |th: &[f64]| template.unpack(th, ts);
-        let (th, cost) = self.fit_packed(&unpack, &packed, &self.typical(template), obj)?;
+        self.explore_packed(&unpack, &packed, &self.typical(template), obj)
+    }
+
+    /// Refine packed parameters of `template`'s structure on the whole fit part.
+    pub fn polish_from(
+        &self,
+        template: &EffectModel,
+        theta: &[f64],
+        obj: Objective,
+    ) -> Option<(EffectModel, f64)> {
+        let ts = self.time_scale;
+        let unpack = |th: &[f64]| template.unpack(th, ts);
+        let (th, cost) = self.polish_packed(&unpack, theta, &self.typical(template), obj)?;
         Some((unpack(&th), cost))
     }
 
-    /// The fitting strategy for any parametrisation: screen many starts by their cost on the exploration
-    /// window and keep [`SCREEN_KEEP`]; run a short fit (8 iterations) from each on the window; refine the
-    /// best on the whole fit part.
+    /// Residuals of the parametrisation `unpack` on samples `0..n`, for the fitter.
+    fn on<'s>(
+        &'s self,
+        unpack: &'s (dyn Fn(&[f64]) -> EffectModel + Sync),
+        obj: Objective,
+        n: usize,
+    ) -> impl Fn(&[f64], &mut Vec<f64>) -> bool + Sync + 's {
+        move |th: &[f64], out: &mut Vec<f64>| {
+            SCRATCH.with_borrow_mut(|scratch| self.residuals(&unpack(th), obj, n, scratch, out))
+        }
+    }
+
+    /// The fitting strategy for any parametrisation: explore, then refine on the whole fit part.
     fn fit_packed(
         &self,
         unpack: &(dyn Fn(&[f64]) -> EffectModel + Sync),
@@ -205,25 +263,34 @@ impl<'a> Problem<'a> {
         typ: &[f64],
         obj: Objective,
     ) -> Option<(Vec<f64>, f64)> {
-        let on = |n: usize| {
-            move |th: &[f64], out: &mut Vec<f64>| {
-                SCRATCH.with_borrow_mut(|scratch| self.residuals(&unpack(th), obj, n, scratch, out))
-            }
+        let (th, _) = self.explore_packed(unpack, starts, typ, obj)?;
+        self.polish_packed(unpack, &th, typ, obj)
+    }
+
+    /// Screen many starts by their cost on the exploration window and keep [`SCREEN_KEEP`]; run a short fit
+    /// (8 iterations) from each on the window. Returns the best point and its window cost (a single start on
+    /// a record short enough to need no window is returned as it is, with its cost there).
+    fn explore_packed(
+        &self,
+        unpack: &(dyn Fn(&[f64]) -> EffectModel + Sync),
+        starts: &[Vec<f64>],
+        typ: &[f64],
+        obj: Objective,
+    ) -> Option<(Vec<f64>, f64)> {
+        let window = self.on(unpack, obj, self.n_explore);
+        let window_cost = |th: &[f64], r: &mut Vec<f64>| {
+            r.clear();
+            window(th, r)
+                .then(|| r.iter().map(|v| v * v).sum::<f64>())
+                .filter(|c| c.is_finite())
         };
-        let window = on(self.n_explore);
+        let mut r = Vec::new();
         let mut kept: Vec<&Vec<f64>> = starts.iter().collect();
         if kept.len() > SCREEN_KEEP {
-            let mut r = Vec::new();
-            let mut scored: Vec<(f64, &Vec<f64>)> = Vec::new();
-            for s in starts {
-                r.clear();
-                if window(s, &mut r) {
-                    let c: f64 = r.iter().map(|v| v * v).sum();
-                    if c.is_finite() {
-                        scored.push((c, s));
-                    }
-                }
-            }
+            let mut scored: Vec<(f64, &Vec<f64>)> = starts
+                .iter()
+                .filter_map(|s| Some((window_cost(s, &mut r)?, s)))
+                .collect();
             scored.sort_by(|a, b| a.0.total_cmp(&b.0));
             kept = scored
                 .into_iter()
@@ -231,24 +298,36 @@ impl<'a> Problem<'a> {
                 .map(|(_, s)| s)
                 .collect();
         }
-        let start = if kept.len() > 1 || self.n_explore < self.n_fit {
-            let short = LmOptions {
-                max_iter: self.lm.max_iter.min(8),
-                ..self.lm
-            };
-            let mut best: Option<(Vec<f64>, f64)> = None;
-            for s in kept {
-                if let Ok(fit) = levenberg_marquardt(&window, s, typ, &[], &short)
-                    && best.as_ref().is_none_or(|b| fit.cost < b.1)
-                {
-                    best = Some((fit.theta, fit.cost));
-                }
-            }
-            best?.0
-        } else {
-            kept.first()?.to_vec()
+        if kept.len() == 1 && !self.windowed() {
+            let s = kept[0];
+            return Some((s.clone(), window_cost(s, &mut r)?));
+        }
+        let short = LmOptions {
+            max_iter: self.lm.max_iter.min(8),
+            ..self.lm
         };
-        let fit = levenberg_marquardt(&on(self.n_fit), &start, typ, &[], &self.polish()).ok()?;
+        kept.into_iter()
+            .filter_map(|s| levenberg_marquardt(&window, s, typ, &[], &short).ok())
+            .map(|fit| (fit.theta, fit.cost))
+            .reduce(|best, f| if f.1 < best.1 { f } else { best })
+    }
+
+    /// Refine on the whole fit part (see [`Problem::polish`] for the settings).
+    fn polish_packed(
+        &self,
+        unpack: &(dyn Fn(&[f64]) -> EffectModel + Sync),
+        theta: &[f64],
+        typ: &[f64],
+        obj: Objective,
+    ) -> Option<(Vec<f64>, f64)> {
+        let fit = levenberg_marquardt(
+            &self.on(unpack, obj, self.n_fit),
+            theta,
+            typ,
+            &[],
+            &self.polish(),
+        )
+        .ok()?;
         Some((fit.theta, fit.cost))
     }
 
@@ -426,15 +505,14 @@ pub(crate) fn stabilize(a: &mut [f64]) {
     a.iter_mut().for_each(|v| *v = 0.0);
 }
 
-/// Fit the plain backlash model: MRGIA, least-squares, linear and dynamics-free starts (and any `extra`
-/// ones), then perturbed restarts; never above the linear model's cost (`linear`).
+/// Fit the plain backlash model: MRGIA, least-squares, linear and dynamics-free starts, then perturbed
+/// restarts; never above the linear model's cost (`linear`).
 pub(crate) fn fit_plain(
     p: &Problem,
     s: Structure,
     restarts: usize,
     seed: u64,
     linear: &(BaseModel, f64),
-    extra: &[BaseModel],
 ) -> Option<(EffectModel, f64)> {
     let mut starts: Vec<BaseModel> = Vec::new();
     starts.extend(p.mrgia_start(s));
@@ -447,7 +525,6 @@ pub(crate) fn fit_plain(
             ..linear_base(s, &a, &b, 0.0)
         });
     }
-    starts.extend(extra.iter().cloned());
     // Always one start without dynamics (stable whatever the data), with the last start's gain if any.
     let b0 = starts.last().map_or(vec![1.0; s.nb + 1], |m| m.b.clone());
     starts.push(BaseModel {
@@ -475,7 +552,18 @@ pub(crate) fn fit_plain(
     let models: Vec<EffectModel> = starts.into_iter().map(EffectModel::plain).collect();
     let template = models[0].clone();
     let (mut best, mut cost) = p.fit(&template, &models, Objective::Simulation)?;
-    // Perturbed restarts around the best.
+    // Perturbed restarts around the best. On a long record a restart is explored on the window and refined
+    // on the whole fit part only if the optimum it reaches there is lower than the best's own optimum there
+    // (the best, refined on the whole fit part, sits off the window's optimum: its raw window cost would let
+    // almost every restart through, each costing a refinement).
+    let window = p.windowed().then(|| p.shortened(p.n_explore));
+    let window_optimum = |m: &EffectModel| {
+        window
+            .as_ref()?
+            .fit(m, std::slice::from_ref(m), Objective::Simulation)
+            .map(|(_, c)| c)
+    };
+    let mut best_window = window_optimum(&best);
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xD1A6_0000);
     let typ = best.base.typical(p.y_scale);
     for _ in 0..restarts {
@@ -497,24 +585,21 @@ pub(crate) fn fit_plain(
             })
             .collect();
         let start = best.unpack(&th, p.time_scale);
-        if p.windowed() {
-            // On a long record a restart is explored on the window and refined only if it beats the best
-            // there.
-            let window = p.shortened(p.n_explore);
-            let (Some((m, c)), Some(c_best)) = (
-                window.fit(&best, std::slice::from_ref(&start), Objective::Simulation),
-                window.cost(&best, Objective::Simulation),
-            ) else {
+        if let Some(w) = &window {
+            let Some((m, c)) = w.fit(&best, std::slice::from_ref(&start), Objective::Simulation)
+            else {
                 continue;
             };
-            if c >= c_best {
+            if best_window.is_some_and(|b| c >= b) {
                 continue;
             }
-            if let Some((m, c)) = p.fit(&best, &[m], Objective::Simulation)
-                && c < cost
+            if let Some((m, c_full)) =
+                p.polish_from(&best, &m.pack(p.time_scale), Objective::Simulation)
+                && c_full < cost
             {
                 best = m;
-                cost = c;
+                cost = c_full;
+                best_window = Some(c);
             }
         } else if let Some((m, c)) = p.fit(&best, &[start], Objective::Simulation)
             && c < cost

@@ -252,7 +252,7 @@ pub(crate) fn select(p: &Problem, max_delay: usize, n_total: usize) -> Structure
         .map(|&i| {
             let s = stage1[i].structure;
             let linear = fit_linear(&est, s)?;
-            let (m, _) = fit_plain(&est, s, 0, 0, &linear, &[])?;
+            let (m, _) = fit_plain(&est, s, 0, 0, &linear)?;
             validation(&m)
         })
         .collect();

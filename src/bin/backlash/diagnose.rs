@@ -2,11 +2,12 @@
 
 use super::structure::StructureArgs;
 use anyhow::{Context, Result, bail};
-use backlash::api::{DiagnoseOptions, diagnose, diagnosis_json};
+use backlash::api::{DiagnoseOptions, diagnose_with_progress, diagnosis_json};
 use backlash::diagnose::record::decimate;
 use backlash::diagnose::report::{ReportInput, Validation, write_report};
 use backlash::io::Table;
 use backlash::report::number;
+use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -110,8 +111,23 @@ pub fn run(args: &DiagnoseArgs, argv: &[String]) -> Result<()> {
         max_effects: args.max_effects,
         time_budget: args.time_budget,
     };
-    let d = diagnose(&u, &y, &opts)
-        .with_context(|| format!("{}: cannot diagnose", args.file.display()))?;
+    // A spinner with the stage on standard error (drawn only on a terminal; not with --json).
+    let spinner = if args.json {
+        ProgressBar::hidden()
+    } else {
+        let b = ProgressBar::new_spinner();
+        b.set_style(
+            ProgressStyle::with_template("{spinner} {elapsed:>4} {msg}").expect("valid template"),
+        );
+        b.enable_steady_tick(std::time::Duration::from_millis(200));
+        b
+    };
+    let d = diagnose_with_progress(&u, &y, &opts, &|stage| {
+        spinner.set_message(stage.to_owned())
+    })
+    .with_context(|| format!("{}: cannot diagnose", args.file.display()));
+    spinner.finish_and_clear();
+    let d = d?;
 
     let mut validations = Vec::new();
     for path in &args.validate_on {
