@@ -633,4 +633,56 @@ mod tests {
         let err = diagnose(&s.u, &s.y, &bad).unwrap_err().to_string();
         assert!(err.contains("between 1 and 9"), "{err}");
     }
+
+    /// `stable` by hand: 1 + 0.45 z^-1 + 0.55 z^-2 (the paper's a) has poles of modulus sqrt(0.55) < 1;
+    /// a = [0.5] gives h(k) = (-0.5)^k, which decays; a = [-1] gives h(k) = 1 for ever; a = [0, 0, 1.2] has
+    /// poles of modulus 1.2^(1/3) > 1.
+    #[test]
+    fn stable_tells_decaying_impulse_responses() {
+        assert!(stable(&[0.45, 0.55]));
+        assert!(stable(&[0.5]));
+        assert!(!stable(&[-1.0]));
+        assert!(!stable(&[0.0, 0.0, 1.2]));
+    }
+
+    /// The curved-borders draws keep to the documented ranges: at s = 2 std(x0) the s^2 term is 5..15 % and
+    /// the s^3 term 2..8 % of the linear one m s, with random signs, and the border's slope
+    /// m + 2 c2 s + 3 c3 s^2 stays above 0.2 m over +-3 std(x0).
+    #[test]
+    fn curved_border_draws_keep_to_their_ranges() {
+        let n = 300;
+        // Negative draws of [upper s^2, upper s^3, lower s^2, lower s^3].
+        let mut negative = [0; 4];
+        for seed in 0..40 {
+            let s = scenario(Some(EffectId::CurvedBorders), seed, n);
+            let x0: Vec<f64> = Plant::simulate(PlantParams::PAPER, &s.u)
+                .unwrap()
+                .iter()
+                .map(|o| o.x)
+                .collect();
+            let std_x = std_dev(&x0);
+            let s_ref = 2.0 * std_x;
+            let c = s.effects.curved_borders.unwrap();
+            let bl = PlantParams::PAPER.backlash;
+            for (side, (m, [c2, c3])) in
+                [(bl.m1, c.upper), (bl.m2, c.lower)].into_iter().enumerate()
+            {
+                let square = (c2 * s_ref * s_ref) / (m * s_ref);
+                let cube = (c3 * s_ref.powi(3)) / (m * s_ref);
+                assert!((0.05..=0.15).contains(&square.abs()), "{seed}: {square}");
+                assert!((0.02..=0.08).contains(&cube.abs()), "{seed}: {cube}");
+                negative[2 * side] += usize::from(square < 0.0);
+                negative[2 * side + 1] += usize::from(cube < 0.0);
+                for i in -30..=30 {
+                    let x = f64::from(i) / 10.0 * std_x;
+                    assert!(m + 2.0 * c2 * x + 3.0 * c3 * x * x > 0.2 * m, "{seed}: {x}");
+                }
+            }
+        }
+        // Random signs on each term of each border: both signs among 40 draws (the resampling of borders
+        // that would not stay increasing drops some negative s^3 terms, not most of them).
+        for count in negative {
+            assert!((4..=36).contains(&count), "{negative:?} of 40 negative");
+        }
+    }
 }

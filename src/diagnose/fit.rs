@@ -421,4 +421,135 @@ mod tests {
         assert!(bic(10.0, 100, 3) > bic(10.0, 100, 2));
         assert!(bic(9.0, 100, 3) < bic(10.0, 100, 2));
     }
+
+    // A straight line with a deterministic wobble: y = 1 + 2 x + 0.1 sin(2.7 k), x = k / 10, k = 0..50,
+    // fitted by r = y - (a + b x). Reference by NumPy (`np.linalg.lstsq`, cost / (n - p) (X^T X)^-1).
+    const LINE_THETA: [f64; 2] = [1.0005955384260365, 1.9999037249863612];
+    const LINE_COST: f64 = 0.24902251030682418;
+    const LINE_COV: [f64; 4] = [
+        0.0004028305313786861,
+        -0.00012206985799354119,
+        -0.00012206985799354119,
+        4.9824431834098444e-05,
+    ];
+
+    fn line_residuals(th: &[f64], out: &mut Vec<f64>) -> bool {
+        out.extend((0..50).map(|k| {
+            let x = f64::from(k) / 10.0;
+            1.0 + 2.0 * x + 0.1 * (2.7 * f64::from(k)).sin() - (th[0] + th[1] * x)
+        }));
+        true
+    }
+
+    #[test]
+    fn covariance_of_a_straight_line_matches_numpy() {
+        let cov = covariance(&line_residuals, &LINE_THETA, &[1.0, 1.0], 1e-6).unwrap();
+        for (c, want) in cov.iter().zip(LINE_COV) {
+            assert!((c - want).abs() < 1e-6 * want.abs(), "{cov}");
+        }
+        // No more residuals than parameters, a parameter the residuals do not depend on, an invalid point:
+        // no covariance.
+        let two = |th: &[f64], out: &mut Vec<f64>| {
+            out.extend([th[0] - 1.0, th[1] - 2.0]);
+            true
+        };
+        assert_eq!(covariance(&two, &[0.0, 0.0], &[1.0, 1.0], 1e-6), None);
+        let inert = |th: &[f64], out: &mut Vec<f64>| {
+            out.extend((0..10).map(|k| f64::from(k) - th[0]));
+            true
+        };
+        assert_eq!(covariance(&inert, &[0.0, 5.0], &[1.0, 1.0], 1e-6), None);
+        let invalid = |_: &[f64], _: &mut Vec<f64>| false;
+        assert_eq!(covariance(&invalid, &[0.0], &[1.0], 1e-6), None);
+    }
+
+    /// From two standard errors away (sqrt(4.03e-4) = 0.0201 in a) the Gauss-Newton decrement is 4 s^2, far
+    /// above stat_tol s^2 = 0.01 s^2: the fit moves to the least-squares point; there the decrement is
+    /// negligible and it stops.
+    #[test]
+    fn the_statistical_stop_needs_a_negligible_step() {
+        let se_a = LINE_COV[0].sqrt();
+        let start = [LINE_THETA[0] + 2.0 * se_a, LINE_THETA[1]];
+        let fit = levenberg_marquardt(
+            &line_residuals,
+            &start,
+            &[1.0, 1.0],
+            &[],
+            &LmOptions::default(),
+        )
+        .unwrap();
+        for (t, want) in fit.theta.iter().zip(LINE_THETA) {
+            assert!((t - want).abs() < 0.01 * se_a, "{:?}", fit.theta);
+        }
+        // Within 0.01 standard errors of the minimum the cost is within 1e-4 s^2 of it (s^2 = cost / 48).
+        assert!(
+            (fit.cost - LINE_COST).abs() < 1e-5 * LINE_COST,
+            "{}",
+            fit.cost
+        );
+        assert_eq!(fit.n, 50);
+        // Started at the least-squares point, it stops at the first check, without a step.
+        let there = levenberg_marquardt(
+            &line_residuals,
+            &LINE_THETA,
+            &[1.0, 1.0],
+            &[],
+            &LmOptions::default(),
+        )
+        .unwrap();
+        assert_eq!((there.iterations, there.evaluations), (1, 3));
+    }
+
+    /// Counting: one Jacobian is one evaluation per free parameter (forward differences succeed on a valid
+    /// line), so a single iteration from (0, 0) costs the start, 2 columns and one accepted trial step.
+    #[test]
+    fn evaluations_are_counted() {
+        let opts = LmOptions {
+            max_iter: 1,
+            ..LmOptions::default()
+        };
+        let fit =
+            levenberg_marquardt(&line_residuals, &[0.0, 0.0], &[1.0, 1.0], &[], &opts).unwrap();
+        assert_eq!((fit.iterations, fit.evaluations), (1, 4));
+        // One step from the undamped Gauss-Newton point (damping 1e-3 of the diagonal): within 1% of the way.
+        assert!(
+            (fit.theta[1] - LINE_THETA[1]).abs() < 0.01 * LINE_THETA[1],
+            "{:?}",
+            fit.theta
+        );
+        // With b fixed, one column.
+        let fit =
+            levenberg_marquardt(&line_residuals, &[0.0, 2.0], &[1.0, 1.0], &[1], &opts).unwrap();
+        assert_eq!((fit.iterations, fit.evaluations), (1, 3));
+        assert_eq!(fit.theta[1], 2.0);
+        // Everything fixed: no iteration, the start's cost.
+        let fit =
+            levenberg_marquardt(&line_residuals, &LINE_THETA, &[1.0, 1.0], &[0, 1], &opts).unwrap();
+        assert_eq!((fit.iterations, fit.evaluations), (0, 1));
+        assert!((fit.cost - LINE_COST).abs() < 1e-9);
+    }
+
+    #[test]
+    fn bic_by_hand_and_multistart_refusals() {
+        // 100 ln(10 / 100) + 3 ln 100 = -216.442998741...
+        assert!((bic(10.0, 100, 3) + 216.44299874144028).abs() < 1e-9);
+        let f = |th: &[f64], out: &mut Vec<f64>| {
+            out.push(th[0]);
+            th[0] > 0.0
+        };
+        let opts = LmOptions::default();
+        assert_eq!(
+            fit_multistart(&f, &[], &[1.0], &[], &opts),
+            Err(FitError::NoStarts)
+        );
+        assert_eq!(
+            fit_multistart(&f, &[vec![-1.0], vec![-2.0]], &[1.0], &[], &opts),
+            Err(FitError::InvalidStart)
+        );
+        // Of two starts that cannot move (the parameter fixed), the lower cost wins.
+        let fit =
+            fit_multistart(&f, &[vec![3.0], vec![2.0], vec![4.0]], &[1.0], &[0], &opts).unwrap();
+        assert_eq!(fit.theta, vec![2.0]);
+        assert_eq!(fit.cost, 4.0);
+    }
 }

@@ -848,4 +848,150 @@ mod tests {
         assert!(is_stable(&[p + q + r, p * q + p * r + q * r, p * q * r]));
         assert!(!is_stable(&[0.0, 0.0, 1.01]));
     }
+
+    /// By hand on the paper's backlash (m1 = 1, m2 = 1.5, c1 = 0.5, c2 = 1): at x = 2 the band is
+    /// [1 (2 - 0.5), 1.5 (2 + 1)] = [1.5, 4.5], so 0 moves up to 1.5; at x = -3 it is [-3.5, -3], so 0 moves
+    /// down to -3; at 0 it stays 0; with the slider inside the spring it rests at x. Gaps c1 = 5, c2 = -4
+    /// invert the band at x = 1 ([-4, -4.5]): the upper border, -4.
+    #[test]
+    fn rest_memory_by_hand() {
+        let b = paper_base();
+        assert_eq!(b.rest_memory(2.0, false), 1.5);
+        assert_eq!(b.rest_memory(-3.0, false), -3.0);
+        assert_eq!(b.rest_memory(0.0, false), 0.0);
+        assert_eq!(b.rest_memory(0.0, true), 0.0);
+        assert_eq!(b.rest_memory(-3.0, true), -3.0);
+        let inverted = BaseModel {
+            c1: 5.0,
+            c2: -4.0,
+            ..paper_base()
+        };
+        assert_eq!(inverted.rest_memory(1.0, false), -4.0);
+    }
+
+    /// From rest at a constant input u0 the model stays at rest: x = gain u0 (gain 0.8 / (1 + 0.45 + 0.55) =
+    /// 0.4), w at the rest memory above: u0 = 5 gives x = 2, y = 1.5; u0 = -7.5 gives x = -3, y = -3.
+    #[test]
+    fn a_model_at_rest_stays_there() {
+        let b = paper_base();
+        assert!((b.static_gain() - 0.4).abs() < 1e-15);
+        for (u0, x, y) in [(5.0, 2.0, 1.5), (-7.5, -3.0, -3.0)] {
+            let u = vec![u0; 20];
+            let s = EffectModel::plain(b.clone())
+                .simulate(&u, Rest(u0), 20, 1e9)
+                .unwrap();
+            for k in 0..20 {
+                assert!((s.x[k] - x).abs() < 1e-12, "{u0} at {k}: {}", s.x[k]);
+                assert!((s.y[k] - y).abs() < 1e-12, "{u0} at {k}: {}", s.y[k]);
+            }
+        }
+        // A block with 1 + sum a = 0 has no static gain: 0 by convention.
+        let marginal = BaseModel {
+            a: vec![-0.5, -0.5],
+            ..paper_base()
+        };
+        assert_eq!(marginal.static_gain(), 0.0);
+    }
+
+    #[test]
+    fn typical_magnitudes_and_orders_by_hand() {
+        let b = BaseModel {
+            nb: 1,
+            b: vec![0.8, -1.2],
+            ..paper_base()
+        };
+        // a: 0.5 each; b: the largest |b| for each; m2: 1; the gaps a tenth of the output's scale.
+        assert_eq!(b.typical(10.0), vec![0.5, 0.5, 1.2, 1.2, 1.0, 1.0, 1.0]);
+        assert_eq!(
+            BaseModel::zero(1, 0, 1).typical(1.0),
+            vec![0.5, 1e-6, 1.0, 0.1, 0.1]
+        );
+        let w = b.with_orders(3, 0, 2);
+        assert_eq!((w.na, w.nb, w.delay), (3, 0, 2));
+        assert_eq!(w.a, vec![0.45, 0.55, 0.0]);
+        assert_eq!(w.b, vec![0.8]);
+        assert_eq!(b.n_params(), 7);
+        assert_eq!(b.pack(), vec![0.45, 0.55, 0.8, -1.2, 1.5, 0.5, 1.0]);
+        assert_eq!(b.unpack(&b.pack()), b);
+    }
+
+    /// The extensions' own validity: a positive finite rounding step, saturation levels in order, a
+    /// non-empty slip range, and a play of non-negative width for the contact form.
+    #[test]
+    fn extension_parameters_are_checked() {
+        let with = |e: Extension| EffectModel::plain(paper_base()).with(e);
+        let q = |step: f64| Extension::Quantization {
+            step,
+            offset: 0.0,
+            sigma: 0.0,
+        };
+        assert!(with(q(0.1)).extensions_valid());
+        assert!(!with(q(-0.1)).extensions_valid());
+        assert!(!with(q(0.0)).extensions_valid());
+        assert!(!with(q(f64::INFINITY)).extensions_valid());
+        assert!(with(Extension::Saturation { lo: 1.0, hi: 1.0 }).extensions_valid());
+        assert!(!with(Extension::Saturation { lo: 1.0, hi: 0.5 }).extensions_valid());
+        let fr = |f_plus: f64, f_minus: f64, form: FrictionForm| Extension::Friction {
+            f_plus,
+            f_minus,
+            form,
+        };
+        assert!(with(fr(0.5, -0.2, FrictionForm::Series)).extensions_valid());
+        assert!(!with(fr(0.5, -0.5, FrictionForm::Series)).extensions_valid());
+        assert!(!with(fr(f64::NAN, 1.0, FrictionForm::Series)).extensions_valid());
+        assert!(with(fr(0.5, 0.5, FrictionForm::Contact)).extensions_valid());
+        let mut narrow = EffectModel::plain(BaseModel {
+            c1: 0.5,
+            c2: -0.6,
+            ..paper_base()
+        });
+        assert!(
+            narrow
+                .with(fr(0.5, 0.5, FrictionForm::Series))
+                .extensions_valid()
+        );
+        narrow = narrow.with(fr(0.5, 0.5, FrictionForm::Contact));
+        assert!(!narrow.extensions_valid());
+        // A model with an invalid extension is not simulated.
+        assert!(
+            with(q(-0.1))
+                .simulate(&input(50), Rest::ZERO, 50, 1e9)
+                .is_none()
+        );
+    }
+
+    /// Each entry once; curved borders never with contact friction (and the reverse); anything else
+    /// combines.
+    #[test]
+    fn which_extensions_combine() {
+        let plain = EffectModel::plain(paper_base());
+        assert!(EffectId::ALL.iter().all(|&id| plain.can_add(id)));
+        let drift = plain.with(Extension::GapDrift {
+            c1_rate: 0.0,
+            c2_rate: 0.0,
+        });
+        assert!(!drift.can_add(EffectId::GapDrift));
+        assert!(drift.can_add(EffectId::Saturation));
+        let contact = Extension::Friction {
+            f_plus: 1.0,
+            f_minus: 1.0,
+            form: FrictionForm::Contact,
+        };
+        let with_contact = plain.with(contact.clone());
+        assert!(with_contact.has_contact());
+        assert!(!with_contact.can_add(EffectId::CurvedBorders));
+        assert!(with_contact.can_add(EffectId::Saturation));
+        let curved = plain.with(Extension::CurvedBorders {
+            upper: [0.0; 2],
+            lower: [0.0; 2],
+        });
+        assert!(!curved.has_contact());
+        assert!(!curved.admits(&contact));
+        assert!(curved.admits(&Extension::Friction {
+            f_plus: 1.0,
+            f_minus: 1.0,
+            form: FrictionForm::Series,
+        }));
+        assert!(!plain.admits(&Extension::None));
+    }
 }

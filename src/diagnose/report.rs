@@ -955,3 +955,30 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
     );
     s
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The parameters in words, in the JSON object's (sorted) key order: integers as they are, numbers with
+    /// four decimals or in exponent form below 1e-3, lists element by element, text as it is; units and
+    /// notes left out; anything else (here a flag) as JSON.
+    #[test]
+    fn parameters_in_words() {
+        let p = serde_json::json!({
+            "delay": 3,
+            "c1_rate": 0.00002,
+            "rate_unit": "per sample",
+            "note": "a remark",
+            "phi": [0.5, -0.25, "x"],
+            "form": "Series",
+            "flag": true,
+        });
+        assert_eq!(
+            params_text(&p),
+            "c1_rate 2.000e-5, delay 3, flag true, form Series, phi [0.5000, -0.2500, \"x\"]"
+        );
+        assert_eq!(params_text(&serde_json::json!(null)), "");
+        assert_eq!(params_text(&serde_json::json!({})), "");
+    }
+}

@@ -793,4 +793,250 @@ mod tests {
         assert!(!extreme_increments(&e0, &yh).rejects);
         assert!(false_alarms <= 1, "{false_alarms} of 40");
     }
+
+    // Exact values on a small fixed record, computed independently with NumPy/SciPy from the definitions in
+    // the doc comments (the script: e, u, x and the modes as in `small`; correlations as
+    // sum a(k) b(k - l) / (|a| |b|) of the centred series, chi-square quantiles from scipy.stats.chi2).
+
+    /// n = 80: e(k) = sin(1.3 k) + 0.5 cos(0.7 k^1.1) + 0.02 k, u(k) = cos(0.9 k) + 0.3 sin(2.1 k + 0.4),
+    /// x(k) = 2 sin(0.25 k) + 0.1 k, and the modes up, up, up, down, down, held, held repeating.
+    fn small() -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<Mode>) {
+        let ks = (0..80).map(f64::from);
+        let e = ks
+            .clone()
+            .map(|k| (1.3 * k).sin() + 0.5 * (0.7 * k.powf(1.1)).cos() + 0.02 * k)
+            .collect();
+        let u = ks
+            .clone()
+            .map(|k| (0.9 * k).cos() + 0.3 * (2.1 * k + 0.4).sin())
+            .collect();
+        let x = ks.map(|k| 2.0 * (0.25 * k).sin() + 0.1 * k).collect();
+        let modes = (0..80)
+            .map(|k| match k % 7 {
+                0..=2 => Mode::Up,
+                3 | 4 => Mode::Down,
+                _ => Mode::Held,
+            })
+            .collect();
+        (e, u, x, modes)
+    }
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() <= 1e-9 * b.abs().max(1e-3)
+    }
+
+    #[test]
+    fn ljung_box_and_cross_correlation_match_numpy() {
+        let (e, u, _, _) = small();
+        // Q = n (n + 2) sum_{l=1..5} r_l^2 / (n - l); chi2.ppf(0.95, 5).
+        let v = ljung_box(&e, 5);
+        assert!(close(v.statistic, 117.2271449265346), "{}", v.statistic);
+        assert!(close(v.threshold, 11.070497693516351), "{}", v.threshold);
+        assert!(v.rejects);
+        assert!(
+            v.detail.ends_with("largest autocorrelation 0.844 at lag 5"),
+            "{}",
+            v.detail
+        );
+        let c = cross_correlation(&e, &u, 6);
+        let r = [
+            0.09114875534533756,
+            0.047659417670627084,
+            -0.047604365152363305,
+            -0.09052656560511146,
+            -0.056754372285824216,
+            0.012180457229958051,
+            0.047594138601635784,
+        ];
+        for (a, b) in c.r.iter().zip(r) {
+            assert!(close(*a, b), "{a} {b}");
+        }
+        assert_eq!(c.lags, (0..=6).collect::<Vec<_>>());
+        assert!(close(c.band, 0.21913063514414538));
+        assert!(c.outside.is_empty());
+        assert!(close(c.verdict.statistic, 0.41595624128675296));
+        assert!(!c.verdict.rejects);
+        // e itself as the "input": lag 0 is 1, far outside the band.
+        let own = cross_correlation(&e, &e, 3);
+        assert!(close(own.r[0], 1.0));
+        assert!(own.outside.contains(&0) && own.verdict.rejects);
+    }
+
+    #[test]
+    fn billings_by_mode_and_against_x_match_numpy() {
+        let (e, u, x, modes) = small();
+        let b = billings(&e, &u, 4);
+        let peaks = [
+            3.8497631262144423,
+            0.41595624128675296,
+            0.4734272177555907,
+            0.6636314858697671,
+            0.32346694615038,
+        ];
+        for ((_, v), p) in b.functions.iter().zip(peaks) {
+            let peak = v.iter().fold(0.0f64, |m, x| m.max(x.abs())) / b.band;
+            assert!(close(peak, p), "{peak} {p}");
+            assert_eq!(v.len(), 5);
+        }
+        assert!(close(b.verdict.statistic, 0.6636314858697671));
+        assert!(!b.verdict.rejects);
+
+        let (groups, v) = by_mode(&e, &modes);
+        let want = [
+            ("up", 36, 0.8504297189618152, 1.217654634636744),
+            ("down", 22, 0.6633425325408094, 1.2262652371306302),
+            ("held", 22, 0.8790917693121348, 1.2160060861135193),
+        ];
+        for (g, (label, count, mean, rms)) in groups.iter().zip(want) {
+            assert_eq!((g.label.as_str(), g.count), (label, count));
+            assert!(close(g.mean, mean) && close(g.rms, rms), "{g:?}");
+        }
+        // The worst group mean in standard errors of the overall rms; rms ratio 1.0084.
+        assert!(close(v.statistic, 4.183894073218108), "{}", v.statistic);
+        assert!(v.rejects);
+        assert!(v.detail.ends_with("rms ratio 1.01"), "{}", v.detail);
+
+        let a = against_x(&e, &x, &modes);
+        assert!(close(a.statistic, 1.6738158355460249), "{}", a.statistic);
+        assert!(!a.rejects);
+        assert!(
+            a.detail
+                .contains("x_hat 0.431, x_hat^2 0.420, x_hat^3 0.387"),
+            "{}",
+            a.detail
+        );
+        assert!(a.detail.contains("58 engaged samples"), "{}", a.detail);
+    }
+
+    #[test]
+    fn since_reversal_drift_and_spectrum_match_numpy() {
+        let (e, _, x, modes) = small();
+        // Samples s since the last direction change of x (none before the first change), in bins of
+        // floor(log2(s + 1)), that is s = 0, 1-2, 3-6, 7-14, ...: counts 6, 12, 24, 30, then empty.
+        let (groups, v) = since_reversal(&e, &x);
+        let want = [
+            (6, 0.8262201380091555, 1.2708948315532909),
+            (12, 1.159644228636328, 1.4520497933077101),
+            (24, 0.7981895215965609, 1.2021404640878406),
+            (30, 0.803518904936991, 1.1791453106053018),
+        ];
+        assert_eq!(groups.len(), 8);
+        for (g, (count, mean, rms)) in groups.iter().zip(want) {
+            assert_eq!(g.count, count, "{g:?}");
+            assert!(close(g.mean, mean) && close(g.rms, rms), "{g:?}");
+        }
+        assert!(groups[4..].iter().all(|g| g.count == 0));
+        assert_eq!(groups[2].label, "3-6");
+        assert!(close(v.statistic, 3.608674645112946), "{}", v.statistic);
+        assert!(v.rejects);
+
+        // CUSUM by mode: up 1.487 (36 samples), down 1.457 (22); late - early third means 0.852, 1.821.
+        let d = drift(&e, &modes);
+        assert!(close(d.statistic, 1.487011167370218), "{}", d.statistic);
+        assert!(d.rejects);
+        assert!(
+            d.detail.contains("late - early mean 8.520e-1 (36"),
+            "{}",
+            d.detail
+        );
+        assert!(
+            d.detail
+                .contains("down: CUSUM 1.46, late - early mean 1.821e0 (22"),
+            "{}",
+            d.detail
+        );
+
+        // Periodogram zero-padded to 256 points: the peak is at 2 pi 53 / 256 rad/sample, 503.4 times the
+        // median ordinate (the 65th smallest of 128); threshold (ln 40 + 6) / ln 2.
+        let (w, s) = spectrum_peak(&e);
+        assert!(close(w, 1.3008157081270237), "{w}");
+        assert!(close(s.statistic, 503.36253452947955), "{}", s.statistic);
+        assert!(close(s.threshold, 13.978098340221143), "{}", s.threshold);
+        assert!(s.rejects);
+    }
+
+    /// By hand: a drop of 1 in the middle of 21 samples (ten 0s, eleven 1s). Centred, the CUSUM reaches
+    /// 10 (11/21) = 110/21 at sample 10; sigma^2 = (10 (11/21)^2 + 11 (10/21)^2) / 21 = 2310 / 9261; the
+    /// statistic 110/21 / (sigma sqrt 21) = 2.2886885 (NumPy); the last third (7 samples) minus the first is 1.
+    #[test]
+    fn drift_by_hand_on_a_step() {
+        let e: Vec<f64> = (0..21).map(|k| if k < 10 { 0.0 } else { 1.0 }).collect();
+        let modes = vec![Mode::Up; 21];
+        let d = drift(&e, &modes);
+        assert!(close(d.statistic, 2.2886885410853175), "{}", d.statistic);
+        assert!(d.rejects);
+        assert_eq!(
+            d.detail,
+            "up: CUSUM 2.29, late - early mean 1.000e0 (21 samples)"
+        );
+        // Fewer than 20 samples of a mode are not looked at.
+        assert_eq!(drift(&e[..19], &modes[..19]).statistic, 0.0);
+    }
+
+    /// By hand: reversals are where the engaged direction changes, held samples in between ignored.
+    #[test]
+    fn reversals_by_hand() {
+        use Mode::{Down, Held, Up};
+        assert_eq!(reversals(&[Up, Held, Up, Down, Held, Down, Up]), vec![3, 6]);
+        assert_eq!(reversals(&[Held, Down, Held, Down]), Vec::<usize>::new());
+    }
+
+    /// The lattice needs at least 99% of the distinct gaps on the step: values 0, 1, ..., 99 and 99.5, each
+    /// twice (202 samples, 101 distinct values), leave 99 gaps of 1 and one of 0.5 (exactly 99%); the step
+    /// is the gap at the 10th percentile, 1.
+    #[test]
+    fn lattice_accepts_exactly_ninety_nine_percent() {
+        let mut y: Vec<f64> = (0..100).map(f64::from).collect();
+        y.push(99.5);
+        let twice: Vec<f64> = y.iter().chain(&y).copied().collect();
+        let (q, v) = lattice(&twice);
+        assert_eq!(q, Some(1.0), "{}", v.detail);
+        assert!(v.rejects);
+        // One more off-grid gap (100 -> 100.25 after 99.5 -> 100): 99 of 102 is below 99%.
+        let mut more = twice.clone();
+        more.extend([100.25, 100.25, 100.0, 100.0]);
+        assert_eq!(lattice(&more).0, None);
+    }
+
+    #[test]
+    fn extreme_increments_match_numpy() {
+        // n = 120, y_hat(k) = 2 sin(0.15 k) + 0.01 k, e as in `small`: 10 rising samples in the top 15% and
+        // 10 falling in the bottom 15%; slopes -1.9545 (t -0.920) and 2.2958 (t 1.107).
+        let yh: Vec<f64> = (0..120)
+            .map(|k| 2.0 * (0.15 * f64::from(k)).sin() + 0.01 * f64::from(k))
+            .collect();
+        let e: Vec<f64> = (0..120)
+            .map(f64::from)
+            .map(|k| (1.3 * k).sin() + 0.5 * (0.7 * k.powf(1.1)).cos() + 0.02 * k)
+            .collect();
+        let v = extreme_increments(&e, &yh);
+        assert!(close(v.statistic, 1.1071154018110818), "{}", v.statistic);
+        assert!(!v.rejects);
+        assert_eq!(
+            v.detail,
+            "top 15%: slope -1.955 (t -0.9, 10 samples); bottom 15%: slope 2.296 (t 1.1, 10 samples)"
+        );
+        // The output clipped at +-1.5: at the top the residual's increments are exactly -dy_hat (slope -1,
+        // zero scatter: t infinite).
+        let clipped: Vec<f64> = yh.iter().map(|y| y.clamp(-1.5, 1.5) - y).collect();
+        let v = extreme_increments(&clipped, &yh);
+        assert_eq!(v.statistic, f64::INFINITY);
+        assert!(v.rejects);
+    }
+
+    /// Held samples at an extreme are not moves: y_hat falls once to 0, holds there 19 samples, then rises
+    /// 1, 2, ..., 19. Only one sample falls at the bottom and 7 rise at the top (fewer than 10 each), so the
+    /// test has nothing to say, whatever the residual does while the output holds.
+    #[test]
+    fn extreme_increments_ignore_held_samples() {
+        let mut yh = vec![1.0];
+        yh.extend([0.0; 20]);
+        yh.extend((1..20).map(f64::from));
+        let mut e = vec![0.0; yh.len()];
+        e[1] = 0.5;
+        e[5] = 0.1;
+        let v = extreme_increments(&e, &yh);
+        assert_eq!(v.statistic, 0.0);
+        assert_eq!(v.detail, "too few samples at the extremes");
+    }
 }

@@ -366,4 +366,326 @@ mod tests {
         assert_eq!(gain_scales(0.1).len(), 7);
         assert_eq!(gain_scales(1e30).len(), 40);
     }
+
+    /// The paper's linear block (static gain 0.8 / 2 = 0.4) and backlash.
+    fn paper() -> EffectModel {
+        EffectModel::plain(BaseModel {
+            na: 2,
+            nb: 0,
+            delay: 1,
+            a: vec![0.45, 0.55],
+            b: vec![0.8],
+            m1: 1.0,
+            m2: 1.5,
+            c1: 0.5,
+            c2: 1.0,
+        })
+    }
+
+    fn no_mrgia(_: usize, _: usize, _: usize) -> Option<BaseModel> {
+        None
+    }
+
+    fn some_mrgia(na: usize, nb: usize, delay: usize) -> Option<BaseModel> {
+        Some(BaseModel::zero(na, nb, delay))
+    }
+
+    /// A context on `u`, `y`, `residual` with the paper's model and no test findings.
+    fn context<'a>(
+        current: &'a EffectModel,
+        u: &'a [f64],
+        y: &'a [f64],
+        residual: &'a [f64],
+    ) -> StartContext<'a> {
+        StartContext {
+            current,
+            u,
+            y,
+            residual,
+            y_scale: 1.0,
+            omega: 0.4,
+            lattice: None,
+            clip: (-1.0, 1.0),
+            mrgia: &no_mrgia,
+        }
+    }
+
+    /// The residual 0.7 sin(0.4 k) - 0.3 cos(0.4 k) + 0.05 sin(2.3 k), k < 60: its least-squares sinusoid at
+    /// 0.4 rad/sample by NumPy (`lstsq` on [sin, cos]).
+    #[test]
+    fn periodic_starts_at_the_least_squares_sinusoid() {
+        let m = paper();
+        let r: Vec<f64> = (0..60)
+            .map(f64::from)
+            .map(|k| 0.7 * (0.4 * k).sin() - 0.3 * (0.4 * k).cos() + 0.05 * (2.3 * k).sin())
+            .collect();
+        let p = plan(EffectId::PeriodicDisturbance, &context(&m, &r, &r, &r)).unwrap();
+        assert_eq!(p.objective, Objective::Simulation);
+        match p.alternatives[0].starts[0].exts[..] {
+            [
+                Extension::Periodic {
+                    omega,
+                    a_sin,
+                    a_cos,
+                },
+            ] => {
+                assert_eq!(omega, 0.4);
+                assert!((a_sin - 0.7001429053851362).abs() < 1e-12, "{a_sin}");
+                assert!((a_cos + 0.2997369530916549).abs() < 1e-12, "{a_cos}");
+            }
+            ref e => panic!("{e:?}"),
+        }
+        // At omega = 0 the sine column vanishes: no fit, zero amplitudes.
+        let cx = StartContext {
+            omega: 0.0,
+            ..context(&m, &r, &r, &r)
+        };
+        match plan(EffectId::PeriodicDisturbance, &cx)
+            .unwrap()
+            .alternatives[0]
+            .starts[0]
+            .exts[..]
+        {
+            [Extension::Periodic { a_sin, a_cos, .. }] => assert_eq!((a_sin, a_cos), (0.0, 0.0)),
+            ref e => panic!("{e:?}"),
+        }
+    }
+
+    /// Values 0.03 + 0.1 n all sit at phase 0.3 of the step 0.1: the offset is 0.03. The residual's rms
+    /// (0.02) is the first noise level, then 0.3 of it and 0.05 of the step; with a residual larger than the
+    /// step, the step.
+    #[test]
+    fn quantization_starts_on_the_lattice() {
+        let m = paper();
+        let y: Vec<f64> = (0..40).map(|k| 0.03 + 0.1 * f64::from(k % 7)).collect();
+        let r: Vec<f64> = (0..40)
+            .map(|k| if k % 2 == 0 { 0.02 } else { -0.02 })
+            .collect();
+        assert!(plan(EffectId::Quantization, &context(&m, &y, &y, &r)).is_none());
+        let cx = StartContext {
+            lattice: Some(0.1),
+            ..context(&m, &y, &y, &r)
+        };
+        let p = plan(EffectId::Quantization, &cx).unwrap();
+        let got: Vec<(f64, f64, f64)> = p.alternatives[0]
+            .starts
+            .iter()
+            .map(|s| match s.exts[..] {
+                [
+                    Extension::Quantization {
+                        step,
+                        offset,
+                        sigma,
+                    },
+                ] => (step, offset, sigma),
+                ref e => panic!("{e:?}"),
+            })
+            .collect();
+        let want = [(0.1, 0.03, 0.02), (0.1, 0.03, 0.006), (0.1, 0.03, 0.005)];
+        assert_eq!(got.len(), 3);
+        for ((step, offset, sigma), (s0, o0, g0)) in got.into_iter().zip(want) {
+            assert_eq!(step, s0);
+            assert!(
+                (offset - o0).abs() < 1e-12 && (sigma - g0).abs() < 1e-12,
+                "{offset} {sigma}"
+            );
+        }
+        let big: Vec<f64> = r.iter().map(|v| 10.0 * v).collect();
+        let cx = StartContext {
+            lattice: Some(0.1),
+            ..context(&m, &y, &y, &big)
+        };
+        match plan(EffectId::Quantization, &cx).unwrap().alternatives[0].starts[0].exts[..] {
+            [Extension::Quantization { sigma, .. }] => assert_eq!(sigma, 0.1),
+            ref e => panic!("{e:?}"),
+        }
+    }
+
+    /// y = 2 u exactly: every slope is 2, over the model's static gain 0.4 a ratio of 5; without moves (a
+    /// constant input) or without a gain, 1.
+    #[test]
+    fn steepness_ratio_by_hand() {
+        let m = paper();
+        let u: Vec<f64> = (0..20).map(|k| f64::from(k * k) / 10.0).collect();
+        let y: Vec<f64> = u.iter().map(|v| 2.0 * v).collect();
+        assert!((steepness_ratio(&context(&m, &u, &y, &y)) - 5.0).abs() < 1e-12);
+        let flat = vec![1.0; 20];
+        assert_eq!(steepness_ratio(&context(&m, &flat, &y, &y)), 1.0);
+        let no_gain = EffectModel::plain(BaseModel::zero(2, 0, 1));
+        assert_eq!(steepness_ratio(&context(&no_gain, &u, &y, &y)), 1.0);
+    }
+
+    /// Friction's grid for y = 2 u (ratio 5: gains 1 .. sqrt(2)^7 = 11.3, 8 of them): per gain 4 offsets x 4
+    /// slip fractions x 2 gaps in series and 3 plays x 3 offsets x 3 fractions in contact. The first series
+    /// start keeps the model's gaps (their mean 0.75 plus-minus their half difference 0.25) with m2 = 1 and
+    /// slip levels at the 99% / 1% quantiles of y; the templates slip at the extremes of y.
+    #[test]
+    fn friction_grid_by_hand() {
+        let m = paper();
+        let u: Vec<f64> = (0..101).map(|k| f64::from(k) / 10.0 - 5.0).collect();
+        let y: Vec<f64> = u.iter().map(|v| 2.0 * v).collect();
+        let p = plan(EffectId::Friction, &context(&m, &u, &y, &y)).unwrap();
+        let [series, contact] = &p.alternatives[..] else {
+            panic!("two arrangements")
+        };
+        assert_eq!(series.starts.len(), 8 * 32);
+        assert_eq!(contact.starts.len(), 8 * 27);
+        let first = &series.starts[0];
+        assert_eq!(
+            (first.base.c1, first.base.c2, first.base.m2),
+            (0.5, 1.0, 1.0)
+        );
+        assert_eq!(first.base.b, vec![0.8]);
+        // quantile(y, 0.99): the element at round(100 * 0.99) = 99 of the sorted 101, 2 (99 / 10 - 5) = 9.8.
+        match first.exts[..] {
+            [
+                Extension::Friction {
+                    f_plus,
+                    f_minus,
+                    form,
+                },
+            ] => {
+                assert!((f_plus - 9.8).abs() < 1e-12 && (f_minus - 9.8).abs() < 1e-12);
+                assert_eq!(form, FrictionForm::Series);
+            }
+            ref e => panic!("{e:?}"),
+        }
+        match series.template.exts[..] {
+            [
+                Extension::Friction {
+                    f_plus, f_minus, ..
+                },
+            ] => assert_eq!((f_plus, f_minus), (10.0, 10.0)),
+            ref e => panic!("{e:?}"),
+        }
+        // The last gain is sqrt(2)^7 times the model's b.
+        let last = &series.starts[series.starts.len() - 1];
+        assert!((last.base.b[0] - 0.8 * 2f64.sqrt().powi(7)).abs() < 1e-12);
+        // Contact: the first play is 2% of the stroke of x, gain 0.4 times the 1%..99% range of u (9.8).
+        let c = &contact.starts[0];
+        assert!((c.base.c1 - 0.02 * 0.4 * 9.8).abs() < 1e-12 && c.base.c1 == c.base.c2);
+        // On curved borders the contact form is not offered.
+        let curved = m.with(Extension::CurvedBorders {
+            upper: [0.0; 2],
+            lower: [0.0; 2],
+        });
+        let p = plan(EffectId::Friction, &context(&curved, &u, &y, &y)).unwrap();
+        assert_eq!(p.alternatives.len(), 1);
+        assert_eq!(
+            p.alternatives[0].template.exts.last(),
+            Some(&Extension::Friction {
+                f_plus: 10.0,
+                f_minus: 10.0,
+                form: FrictionForm::Series,
+            })
+        );
+    }
+
+    /// The saturation starts: the clipping test's levels, then the 2/98% and the 10/90% quantiles of y
+    /// (y = 0..=100: the values 2, 98, 10, 90).
+    #[test]
+    fn saturation_starts_by_hand() {
+        let m = paper();
+        let y: Vec<f64> = (0..=100).map(f64::from).collect();
+        let p = plan(EffectId::Saturation, &context(&m, &y, &y, &y)).unwrap();
+        let levels: Vec<(f64, f64)> = p.alternatives[0]
+            .starts
+            .iter()
+            .map(|s| match s.exts[..] {
+                [Extension::Saturation { lo, hi }] => (lo, hi),
+                ref e => panic!("{e:?}"),
+            })
+            .collect();
+        assert_eq!(levels, vec![(-1.0, 1.0), (2.0, 98.0), (10.0, 90.0)]);
+    }
+
+    /// Longer delays 2, 3, 4 from delay 1 (only up to the plant's bound), one more a or b coefficient (only
+    /// up to the largest order); each from the padded model and, where MRGIA gives one, from its estimate.
+    #[test]
+    fn delay_and_order_alternatives() {
+        let m = paper();
+        let y = vec![0.0; 10];
+        let p = plan(EffectId::ExtraDelay, &context(&m, &y, &y, &y)).unwrap();
+        let delays: Vec<usize> = p
+            .alternatives
+            .iter()
+            .map(|a| a.template.base.delay)
+            .collect();
+        assert_eq!(delays, vec![2, 3, 4]);
+        assert!(p.alternatives.iter().all(|a| a.starts.len() == 1));
+        let cx = StartContext {
+            mrgia: &some_mrgia,
+            ..context(&m, &y, &y, &y)
+        };
+        let p = plan(EffectId::LinearOrder, &cx).unwrap();
+        let orders: Vec<(usize, usize)> = p
+            .alternatives
+            .iter()
+            .map(|a| (a.template.base.na, a.template.base.nb))
+            .collect();
+        assert_eq!(orders, vec![(3, 0), (2, 1)]);
+        assert!(p.alternatives.iter().all(|a| a.starts.len() == 2));
+        assert_eq!(p.alternatives[1].starts[1].base, BaseModel::zero(2, 1, 1));
+        // At the bounds: delay MAX_DELAY - 1 leaves one longer delay; na = MAX_ORDER only a b; both at their
+        // largest: no alternative, no plan.
+        let mut edge = paper();
+        edge.base = edge.base.with_orders(MAX_ORDER, MAX_ORDER, MAX_DELAY - 1);
+        let p = plan(EffectId::ExtraDelay, &context(&edge, &y, &y, &y)).unwrap();
+        assert_eq!(p.alternatives.len(), 1);
+        assert!(plan(EffectId::LinearOrder, &context(&edge, &y, &y, &y)).is_none());
+        edge.base = edge.base.with_orders(MAX_ORDER, 1, MAX_DELAY);
+        let p = plan(EffectId::LinearOrder, &context(&edge, &y, &y, &y)).unwrap();
+        assert_eq!(p.alternatives[0].template.base.nb, 2);
+        assert!(plan(EffectId::ExtraDelay, &context(&edge, &y, &y, &y)).is_none());
+    }
+
+    /// An AR(1) residual e(k) = 0.6 e(k-1) + v(k), v(k) = sin(1.7 k^1.3) + 0.5 cos(0.9 k), k < 60: by
+    /// NumPy least squares (conditional, as `ar_ls`) and BIC n ln(rss / n) + p ln n over orders 1..3, the
+    /// order 2 wins (-40.33 against -30.90 and -37.83) with phi = [1.00544, -0.43992].
+    #[test]
+    fn coloured_noise_starts_at_the_bic_best_ar_fit() {
+        let m = paper();
+        let mut e = vec![0.0; 60];
+        for k in 0..60 {
+            let kf = f64::from(k as u32);
+            let v = (1.7 * kf.powf(1.3)).sin() + 0.5 * (0.9 * kf).cos();
+            e[k] = if k > 0 { 0.6 * e[k - 1] } else { 0.0 } + v;
+        }
+        let p = plan(EffectId::ColouredNoise, &context(&m, &e, &e, &e)).unwrap();
+        assert_eq!(p.objective, Objective::Prediction);
+        match &p.alternatives[0].starts[0].exts[..] {
+            [Extension::ColouredNoise { phi }] => {
+                assert_eq!(phi.len(), 2);
+                assert!((phi[0] - 1.0054404372362657).abs() < 1e-9, "{phi:?}");
+                assert!((phi[1] + 0.4399247944902299).abs() < 1e-9, "{phi:?}");
+            }
+            e => panic!("{e:?}"),
+        }
+        // A zero residual has no AR fit: no plan.
+        let zero = vec![0.0; 60];
+        assert!(plan(EffectId::ColouredNoise, &context(&m, &zero, &zero, &zero)).is_none());
+    }
+
+    #[test]
+    fn gap_drift_and_curved_borders_start_at_the_current_model() {
+        let m = paper();
+        let y = vec![0.0; 10];
+        let cx = context(&m, &y, &y, &y);
+        let p = plan(EffectId::GapDrift, &cx).unwrap();
+        assert_eq!(
+            p.alternatives[0].starts[0].exts,
+            vec![Extension::GapDrift {
+                c1_rate: 0.0,
+                c2_rate: 0.0
+            }]
+        );
+        let p = plan(EffectId::CurvedBorders, &cx).unwrap();
+        assert_eq!(
+            p.alternatives[0].template.exts,
+            vec![Extension::CurvedBorders {
+                upper: [0.0; 2],
+                lower: [0.0; 2]
+            }]
+        );
+    }
 }
