@@ -685,4 +685,24 @@ mod tests {
             assert!((4..=36).contains(&count), "{negative:?} of 40 negative");
         }
     }
+
+    /// Each set of effects has its own generator: a single-effect record does not draw from the clean
+    /// record's stream (its SNR, the first draw, differs for the same seed). The SNR is recovered as the
+    /// noise-free output's standard deviation over the noise's.
+    #[test]
+    fn each_set_of_effects_draws_from_its_own_stream() {
+        let snr = |s: &Scenario| std_dev(&s.f) / s.params.noise_std;
+        let clean = scenario_with(&[], 4, 400);
+        let drift = scenario_with(&[EffectId::GapDrift], 4, 400);
+        let friction = scenario_with(&[EffectId::Friction], 4, 400);
+        assert!(
+            (snr(&clean) - snr(&drift)).abs() > 1e-6,
+            "{} {}",
+            snr(&clean),
+            snr(&drift)
+        );
+        assert!((snr(&drift) - snr(&friction)).abs() > 1e-6);
+        // The same set and seed give the same record.
+        assert_eq!(scenario_with(&[EffectId::GapDrift], 4, 400).y, drift.y);
+    }
 }

@@ -552,4 +552,29 @@ mod tests {
         assert_eq!(fit.theta, vec![2.0]);
         assert_eq!(fit.cost, 4.0);
     }
+
+    /// At the edge of the valid region the Jacobian takes the backward difference: a residual function that
+    /// fills its output and then reports the point invalid is not used. The line y = t x at t = 1 with
+    /// residuals +-0.5 on x = 1..20: s^2 = 20 * 0.25 / 19, sum x^2 = 20 * 21 * 41 / 6 = 2870, so the variance
+    /// of t is s^2 / 2870 (the backward difference of a linear residual is exact up to rounding).
+    #[test]
+    fn jacobian_takes_the_backward_difference_at_the_edge_of_the_valid_region() {
+        let x: Vec<f64> = (1..=20).map(f64::from).collect();
+        let y: Vec<f64> = x
+            .iter()
+            .enumerate()
+            .map(|(i, v)| v + if i % 2 == 0 { 0.5 } else { -0.5 })
+            .collect();
+        let f = |th: &[f64], out: &mut Vec<f64>| {
+            if th[0] > 1.0 {
+                out.extend(std::iter::repeat_n(1e6, x.len()));
+                return false;
+            }
+            out.extend(y.iter().zip(&x).map(|(a, b)| a - th[0] * b));
+            true
+        };
+        let cov = covariance(&f, &[1.0], &[1.0], 1e-6).unwrap();
+        let want = (20.0 * 0.25 / 19.0) / 2870.0;
+        assert!((cov[(0, 0)] - want).abs() < 1e-6 * want, "{cov} vs {want}");
+    }
 }

@@ -613,3 +613,33 @@ pub(crate) fn fit_plain(
     }
     Some((best, cost))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A constant input is collinear with the equation's constant: the ridge relative to each column keeps the
+    /// equations solvable, and what the record determines comes out. y(k) = 0.6 y(k-1) + 2 u(k-1) from rest at
+    /// 0 with u = 1: the transient identifies a1 = -0.6 (the crate's sign: x(k) = -a1 x(k-1) + ...), and the
+    /// steady state b0 / (1 + a1) + offset = 2 / 0.4 = 5, however b0 and the constant share the 2.
+    #[test]
+    fn arx_with_a_constant_input_is_solved() {
+        let n = 400;
+        let u = vec![1.0; n];
+        let mut y = vec![0.0; n];
+        for k in 1..n {
+            y[k] = 0.6 * y[k - 1] + 2.0 * u[k - 1];
+        }
+        let p = Problem::new(&u, &y, 300, LmOptions::default());
+        let (a, b, offset) = p
+            .arx(Structure {
+                na: 1,
+                nb: 0,
+                delay: 1,
+            })
+            .expect("a constant input is solved, not refused");
+        assert!((a[0] + 0.6).abs() < 1e-6, "{a:?}");
+        let steady = b[0] / (1.0 + a[0]) + offset;
+        assert!((steady - 5.0).abs() < 1e-6, "{b:?} {offset}");
+    }
+}

@@ -296,7 +296,8 @@ pub fn reversals(modes: &[Mode]) -> Vec<usize> {
 }
 
 /// The residual against the number of samples since the last direction change of x_hat, in bins of
-/// increasing width (0-1, 2-3, 4-7, ...). Friction shows as a residual pattern right after reversals.
+/// doubling width (0, 1-2, 3-6, 7-14, ...; the eighth bin also takes every count above its range). Friction
+/// shows as a residual pattern right after reversals.
 pub fn since_reversal(e: &[f64], x_hat: &[f64]) -> (Vec<GroupStats>, Verdict) {
     let mut since = vec![usize::MAX; e.len()];
     let mut dir = 0i8;
