@@ -463,6 +463,8 @@ mod tests {
             if d.effect_id().is_some() {
                 false_positives.push(line(&s, &d, 0.0));
             }
+            // The paper plant's play (c1 + c2 = 1.5) is plain in every clean record.
+            assert!(d.backlash.supported, "{}", d.backlash.verdict);
             assert_eq!(
                 d.effect_id().is_none(),
                 (d.after_rmse() - d.base_heldout_rmse).abs() == 0.0,
@@ -704,5 +706,34 @@ mod tests {
         assert!((snr(&drift) - snr(&friction)).abs() > 1e-6);
         // The same set and seed give the same record.
         assert_eq!(scenario_with(&[EffectId::GapDrift], 4, 400).y, drift.y);
+    }
+
+    /// The drawn drift widens each gap by the fraction in the description over the record, reached at its
+    /// last sample: c_rate * (n - 1) = c * g. A 10-sample record makes an off-by-two span visible through the
+    /// description's whole percents (9 / 11 of the fraction).
+    #[test]
+    fn gap_drift_reaches_the_described_widening_at_the_last_sample() {
+        let n = 10;
+        for seed in 0..5 {
+            let s = scenario(Some(EffectId::GapDrift), seed, n);
+            let drift = s.effects.gap_drift.as_ref().expect("gap drift drawn");
+            let percent = |name: &str| -> f64 {
+                let rest = &s.description
+                    [s.description.find(&format!("{name} +")).unwrap() + name.len() + 2..];
+                rest[..rest.find('%').unwrap()].parse().unwrap()
+            };
+            let bl = s.params.backlash;
+            let got = [
+                100.0 * drift.c1_rate * (n - 1) as f64 / bl.c1,
+                100.0 * drift.c2_rate * (n - 1) as f64 / bl.c2,
+            ];
+            for (g, want) in got.iter().zip([percent("c1"), percent("c2")]) {
+                assert!(
+                    (g - want).abs() <= 0.5 + 1e-9,
+                    "{got:?} vs {}",
+                    s.description
+                );
+            }
+        }
     }
 }

@@ -642,4 +642,36 @@ mod tests {
         let steady = b[0] / (1.0 + a[0]) + offset;
         assert!((steady - 5.0).abs() < 1e-6, "{b:?} {offset}");
     }
+
+    /// Noise-free data of a second-order block with a delay of 2 and two input lags, x(k) = -a1 x(k-1)
+    /// - a2 x(k-2) + b0 u(k-2) + b1 u(k-3) (a1 = -0.5, a2 = 0.2, b0 = 1.5, b1 = -0.4), plus an output offset
+    /// of 3: the least squares return exactly these (each lag in its place) and the offset.
+    #[test]
+    fn arx_recovers_every_lag_in_its_place() {
+        let n = 600;
+        let u: Vec<f64> = (0..n)
+            .map(|k| (0.3 * k as f64).sin() + (1.1 * k as f64).sin())
+            .collect();
+        let mut x = vec![0.0; n];
+        for k in 3..n {
+            x[k] = 0.5 * x[k - 1] - 0.2 * x[k - 2] + 1.5 * u[k - 2] - 0.4 * u[k - 3];
+        }
+        let y: Vec<f64> = x.iter().map(|v| v + 3.0).collect();
+        let p = Problem::new(&u, &y, 500, LmOptions::default());
+        let (a, b, offset) = p
+            .arx(Structure {
+                na: 2,
+                nb: 1,
+                delay: 2,
+            })
+            .unwrap();
+        for (got, want) in a
+            .iter()
+            .chain(&b)
+            .chain([&offset])
+            .zip([-0.5, 0.2, 1.5, -0.4, 3.0])
+        {
+            assert!((got - want).abs() < 1e-6, "{a:?} {b:?} {offset}");
+        }
+    }
 }

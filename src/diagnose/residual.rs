@@ -112,15 +112,21 @@ pub struct CrossCorrelation {
     pub verdict: Verdict,
 }
 
+/// How many of `count` correlations may fall outside their 95% band by chance: under independence each does
+/// with probability 0.05, so the count is binomial(count, 0.05); its mean plus 1.96 standard deviations, plus
+/// one for the discreteness.
+pub fn allowed_outside(count: usize) -> f64 {
+    let expected = 0.05 * count as f64;
+    expected + Z95 * (expected * 0.95).sqrt() + 1.0
+}
+
 pub fn cross_correlation(e: &[f64], u: &[f64], lags: usize) -> CrossCorrelation {
     let (ec, uc) = (centred(e), centred(u));
     let r: Vec<f64> = (0..=lags).map(|l| corr_at(&ec, &uc, l)).collect();
     let band = Z95 / (e.len().max(1) as f64).sqrt();
     let outside: Vec<usize> = (0..=lags).filter(|&l| r[l].abs() > band).collect();
-    // Under independence about 5% of lags fall outside by chance: reject when more than a binomial 95% upper
-    // bound do, or when one lag is far outside (|r| > 2 band).
-    let expected = 0.05 * (lags + 1) as f64;
-    let allowed = expected + Z95 * (expected * 0.95).sqrt() + 1.0;
+    // Reject when more lags fall outside than chance allows, or when one lag is far outside (|r| > 2 band).
+    let allowed = allowed_outside(lags + 1);
     let peak = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let rejects = outside.len() as f64 > allowed || peak > 2.0 * band;
     let statistic = peak / band;
@@ -1039,5 +1045,22 @@ mod tests {
         let v = extreme_increments(&e, &yh);
         assert_eq!(v.statistic, 0.0);
         assert_eq!(v.detail, "too few samples at the extremes");
+    }
+
+    /// The binomial allowance by hand: 21 lags, mean 1.05, variance 1.05 * 0.95 = 0.9975, so 1.05 + 1.96 *
+    /// 0.998749 + 1 = 4.007511; 41 lags, mean 2.05, variance 1.9475, so 2.05 + 1.96 * 1.395529 + 1 = 5.785186.
+    #[test]
+    fn allowed_outside_is_the_binomial_upper_bound_plus_one() {
+        assert!(
+            (allowed_outside(21) - 4.007_511).abs() < 1e-5,
+            "{}",
+            allowed_outside(21)
+        );
+        assert!(
+            (allowed_outside(41) - 5.785_186).abs() < 1e-5,
+            "{}",
+            allowed_outside(41)
+        );
+        assert_eq!(allowed_outside(0), 1.0);
     }
 }
