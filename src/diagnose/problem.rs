@@ -643,9 +643,10 @@ mod tests {
         assert!((steady - 5.0).abs() < 1e-6, "{b:?} {offset}");
     }
 
-    /// Noise-free data of a second-order block with a delay of 2 and two input lags, x(k) = -a1 x(k-1)
-    /// - a2 x(k-2) + b0 u(k-2) + b1 u(k-3) (a1 = -0.5, a2 = 0.2, b0 = 1.5, b1 = -0.4), plus an output offset
-    /// of 3: the least squares return exactly these (each lag in its place) and the offset.
+    /// Noise-free data of a second-order block with a delay of 2 and two input lags,
+    /// x(k) = -a1 x(k-1) - a2 x(k-2) + b0 u(k-2) + b1 u(k-3) with a1 = -0.5, a2 = 0.2, b0 = 1.5, b1 = -0.4,
+    /// plus an output offset of 3: the least squares return exactly these (each lag in its place) and the
+    /// offset.
     #[test]
     fn arx_recovers_every_lag_in_its_place() {
         let n = 600;
