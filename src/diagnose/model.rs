@@ -698,12 +698,13 @@ impl EffectModel {
 pub use crate::plant::linear::is_stable;
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::plant::effects::simulate_with_effects;
     use crate::plant::{ArxParams, PlantParams};
 
-    fn paper_base() -> BaseModel {
+    /// The paper's linear block (static gain 0.8 / 2 = 0.4) and backlash, for the diagnose modules' tests.
+    pub(crate) fn paper_base() -> BaseModel {
         BaseModel {
             na: 2,
             nb: 0,

@@ -369,17 +369,7 @@ mod tests {
 
     /// The paper's linear block (static gain 0.8 / 2 = 0.4) and backlash.
     fn paper() -> EffectModel {
-        EffectModel::plain(BaseModel {
-            na: 2,
-            nb: 0,
-            delay: 1,
-            a: vec![0.45, 0.55],
-            b: vec![0.8],
-            m1: 1.0,
-            m2: 1.5,
-            c1: 0.5,
-            c2: 1.0,
-        })
+        EffectModel::plain(crate::diagnose::model::tests::paper_base())
     }
 
     fn no_mrgia(_: usize, _: usize, _: usize) -> Option<BaseModel> {
