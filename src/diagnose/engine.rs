@@ -58,8 +58,8 @@
 //! samples of the fit part; only the best start is refined on the whole fit part, and that refinement stops
 //! when its step is below 0.1 standard errors (as `identify oe` does) or after a few iterations, so a long
 //! record costs a few simulations of its whole length per candidate. A candidate with several structures
-//! (longer delays, higher orders, friction's two forms) refines only the best of them on the window. Every fit is bounded in iterations and simulations, and
-//! the whole diagnosis by a time budget ([`DiagnoseConfig::time_budget`]): candidates not fitted when it is
+//! (longer delays, higher orders, friction's two forms) refines only the best of them on the window. Every
+//! fit is bounded in iterations and simulations, and the whole diagnosis by a time budget ([`DiagnoseConfig::time_budget`]): candidates not fitted when it is
 //! spent are listed as not tried.
 //!
 //! ## Why no constant offset

@@ -208,7 +208,10 @@ impl<'a> Problem<'a> {
             Some((*template, self.explore(template, starts, obj)?))
         });
         if self.windowed() {
-            let (template, (th, _)) = explored.min_by(|a, b| a.1.1.total_cmp(&b.1.1))?;
+            // Every structure was explored on the window here, so each has its window cost.
+            let window_cost = |c: Option<f64>| c.unwrap_or(f64::INFINITY);
+            let (template, (th, _)) =
+                explored.min_by(|a, b| window_cost(a.1.1).total_cmp(&window_cost(b.1.1)))?;
             return self.polish_from(template, &th, obj);
         }
         explored
@@ -217,13 +220,13 @@ impl<'a> Problem<'a> {
     }
 
     /// Explore `template`'s structure from `starts` on the exploration window: the packed parameters of the
-    /// best point and its cost there.
+    /// best point and its cost there (see [`Problem::explore_packed`]).
     pub fn explore(
         &self,
         template: &EffectModel,
         starts: &[EffectModel],
         obj: Objective,
-    ) -> Option<(Vec<f64>, f64)> {
+    ) -> Option<(Vec<f64>, Option<f64>)> {
         let ts = self.time_scale;
         let packed: Vec<Vec<f64>> = starts.iter().map(|s| s.pack(ts)).collect();
         let unpack = |th: &[f64]| template.unpack(th, ts);
@@ -268,28 +271,29 @@ impl<'a> Problem<'a> {
     }
 
     /// Screen many starts by their cost on the exploration window and keep [`SCREEN_KEEP`]; run a short fit
-    /// (8 iterations) from each on the window. Returns the best point and its window cost (a single start on
-    /// a record short enough to need no window is returned as it is, with its cost there).
+    /// (8 iterations) from each on the window. Returns the best point and its window cost; a single start on
+    /// a record short enough to need no window is returned as it is, unevaluated (cost `None`: the
+    /// refinement evaluates it first thing).
     fn explore_packed(
         &self,
         unpack: &(dyn Fn(&[f64]) -> EffectModel + Sync),
         starts: &[Vec<f64>],
         typ: &[f64],
         obj: Objective,
-    ) -> Option<(Vec<f64>, f64)> {
+    ) -> Option<(Vec<f64>, Option<f64>)> {
         let window = self.on(unpack, obj, self.n_explore);
-        let window_cost = |th: &[f64], r: &mut Vec<f64>| {
-            r.clear();
-            window(th, r)
-                .then(|| r.iter().map(|v| v * v).sum::<f64>())
-                .filter(|c| c.is_finite())
-        };
-        let mut r = Vec::new();
         let mut kept: Vec<&Vec<f64>> = starts.iter().collect();
         if kept.len() > SCREEN_KEEP {
+            let mut r = Vec::new();
+            let mut window_cost = |th: &[f64]| {
+                r.clear();
+                window(th, &mut r)
+                    .then(|| r.iter().map(|v| v * v).sum::<f64>())
+                    .filter(|c| c.is_finite())
+            };
             let mut scored: Vec<(f64, &Vec<f64>)> = starts
                 .iter()
-                .filter_map(|s| Some((window_cost(s, &mut r)?, s)))
+                .filter_map(|s| Some((window_cost(s)?, s)))
                 .collect();
             scored.sort_by(|a, b| a.0.total_cmp(&b.0));
             kept = scored
@@ -299,8 +303,7 @@ impl<'a> Problem<'a> {
                 .collect();
         }
         if kept.len() == 1 && !self.windowed() {
-            let s = kept[0];
-            return Some((s.clone(), window_cost(s, &mut r)?));
+            return Some((kept[0].clone(), None));
         }
         let short = LmOptions {
             max_iter: self.lm.max_iter.min(8),
@@ -310,6 +313,7 @@ impl<'a> Problem<'a> {
             .filter_map(|s| levenberg_marquardt(&window, s, typ, &[], &short).ok())
             .map(|fit| (fit.theta, fit.cost))
             .reduce(|best, f| if f.1 < best.1 { f } else { best })
+            .map(|(th, cost)| (th, Some(cost)))
     }
 
     /// Refine on the whole fit part (see [`Problem::polish`] for the settings).
