@@ -17,6 +17,7 @@
 //! | saturation | clipped at the 85..95 % and 5..15 % quantiles of w0; at the sensor or an end stop (before the noise), 50/50 | SNR 20..50 |
 //! | periodic-disturbance | amplitude 0.5..2 noise std, omega 0.05..3 rad/sample, any phase | SNR 20..50 |
 //! | quantization | step 0.1..0.3 std(w0), noise std = step / (6..20) (a coarse sensor: its noise is well below one step) | as said |
+//! | direction-dependent | while x falls the linear block's poles are 0.4..0.7 times the rising ones (a_i scaled by s^i), b0 scaled to keep the static gain | SNR 20..50 |
 //! | friction | k_e 0.5..2, slip levels 30..70 % of k_e times the half range of w0, each side drawn separately; the series or the contact form (play inside the spring, the plant's gaps as the play), 50/50 | SNR 20..50 |
 //!
 //! Why these: each is a magnitude a test engineer would want to know about (a gap growing by a third, a
@@ -32,8 +33,8 @@ use rand_distr::{Distribution, StandardUniform};
 use super::catalogue::EffectId;
 use crate::identify::mrgia::paper_input;
 use crate::plant::effects::{
-    ColouredNoise, CurvedBorders, Effects, Friction, FrictionForm, GapDrift, Periodic,
-    Quantization, Saturation, simulate_with_effects,
+    ColouredNoise, CurvedBorders, DirectionDependent, Effects, Friction, FrictionForm, GapDrift,
+    Periodic, Quantization, Saturation, simulate_with_effects,
 };
 use crate::plant::{Plant, PlantParams};
 use crate::stats::{quantile, std_dev};
@@ -189,6 +190,20 @@ impl Bench {
         let params = &mut self.params;
         let e = &mut self.effects;
         match effect {
+            EffectId::DirectionDependent => {
+                let s = d.uniform(0.4, 0.7);
+                let arx = &params.arx;
+                let mut fall = DirectionDependent { a: arx.a, b: arx.b };
+                let mut scale = 1.0;
+                for a in fall.a.iter_mut().take(arx.na) {
+                    scale *= s;
+                    *a *= scale;
+                }
+                let gain = (1.0 + fall.a.iter().sum::<f64>()) / (1.0 + arx.a.iter().sum::<f64>());
+                fall.b.iter_mut().for_each(|b| *b *= gain);
+                e.direction_dependent = Some(fall);
+                format!("falling poles {s:.2} times the rising ones, same static gain")
+            }
             EffectId::GapDrift => {
                 let (g1, g2) = (d.uniform(0.3, 0.8), d.uniform(0.3, 0.8));
                 let span = (n - 1) as f64;
@@ -451,6 +466,10 @@ mod tests {
     #[test]
     fn check_friction() {
         check_effect(EffectId::Friction);
+    }
+    #[test]
+    fn check_direction_dependent() {
+        check_effect(EffectId::DirectionDependent);
     }
 
     /// Clean records: null in at least 19 of 20.

@@ -11,6 +11,7 @@
 //! | `periodic-disturbance` | a_s sin(w k) + a_c cos(w k) on the output; w from the spectrum peak, a_s, a_c by least squares, then all refined | w, amplitude, phase | spectrum peak (not at a frequency the input carries), Ljung-Box |
 //! | `quantization` | the sensor rounds to offset + q Z; the model gives the expected reading for Gaussian noise of std sigma (at most 2 q) before the rounding | q and offset (from the value lattice), sigma (fitted) | value lattice |
 //! | `friction` | elasto-plastic Coulomb element with the backlash, slip levels F+ and -F-, *series* (after the backlash output) or *contact* (the play inside the element's spring); both fitted, the better kept | F+, F-, form (k_e = 1: the stiffness is carried by b, as m1 = 1) | extremes, since reversal, by mode, Billings, drift, Ljung-Box |
+//! | `direction-dependent` | the linear block has a second set of coefficients for while its output falls: x(k) = x_rise(k) unless that falls below x(k-1), then x_fall(k) | a_fall, b_fall (same orders) | by mode, since reversal, Billings, Ljung-Box |
 
 use serde::{Deserialize, Serialize};
 
@@ -42,11 +43,12 @@ pub enum EffectId {
     PeriodicDisturbance,
     Quantization,
     Friction,
+    DirectionDependent,
 }
 
 impl EffectId {
     /// The whole catalogue, in the contract's order.
-    pub const ALL: [EffectId; 9] = [
+    pub const ALL: [EffectId; 10] = [
         EffectId::GapDrift,
         EffectId::CurvedBorders,
         EffectId::ExtraDelay,
@@ -56,6 +58,7 @@ impl EffectId {
         EffectId::PeriodicDisturbance,
         EffectId::Quantization,
         EffectId::Friction,
+        EffectId::DirectionDependent,
     ];
 
     /// The contract's stable name.
@@ -70,6 +73,7 @@ impl EffectId {
             EffectId::PeriodicDisturbance => "periodic-disturbance",
             EffectId::Quantization => "quantization",
             EffectId::Friction => "friction",
+            EffectId::DirectionDependent => "direction-dependent",
         }
     }
 
@@ -101,6 +105,9 @@ impl EffectId {
             EffectId::Friction => {
                 "an elasto-plastic Coulomb element with the backlash, slipping at F+ / -F-: after the backlash output (series, f(k) = clamp(f(k-1) + w(k) - w(k-1), -F-, F+)) or with the play inside its spring (contact: the force unloads, crosses the play at zero, reloads); the better-fitting form is kept"
             }
+            EffectId::DirectionDependent => {
+                "direction-dependent dynamics: the linear block has a second set of coefficients (same orders) for while its output falls, as a motor driven up and coasting down"
+            }
         }
     }
 
@@ -116,6 +123,7 @@ impl EffectId {
             EffectId::Saturation => &[CLIPPING, EXTREMES, AGAINST_X, BILLINGS],
             EffectId::PeriodicDisturbance => &[SPECTRUM_PEAK, LJUNG_BOX],
             EffectId::Quantization => &[LATTICE],
+            EffectId::DirectionDependent => &[BY_MODE, SINCE_REVERSAL, BILLINGS, LJUNG_BOX],
             EffectId::Friction => &[
                 EXTREMES,
                 SINCE_REVERSAL,
@@ -160,7 +168,8 @@ mod unit {
                 "saturation",
                 "periodic-disturbance",
                 "quantization",
-                "friction"
+                "friction",
+                "direction-dependent"
             ]
         );
         for e in EffectId::ALL {

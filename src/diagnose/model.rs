@@ -6,8 +6,8 @@ use serde::Serialize;
 
 use super::catalogue::EffectId;
 use crate::plant::effects::{
-    self, CurvedBorders, Effects, Friction, FrictionForm, GapDrift, Periodic, Quantization,
-    Saturation,
+    self, CurvedBorders, DirectionDependent, Effects, Friction, FrictionForm, GapDrift, Periodic,
+    Quantization, Saturation,
 };
 use crate::plant::{BacklashParams, MAX_ORDER, Mode};
 
@@ -199,6 +199,12 @@ pub enum Extension {
     ColouredNoise {
         phi: Vec<f64>,
     },
+    /// The linear block's coefficients while its output falls ([`DirectionDependent`]): `a` has the base
+    /// model's `na` entries, `b` its `nb + 1` ([`EffectModel::rebased`] keeps them so).
+    DirectionDependent {
+        a: Vec<f64>,
+        b: Vec<f64>,
+    },
 }
 
 impl Extension {
@@ -214,6 +220,7 @@ impl Extension {
             Extension::Quantization { .. } => EffectId::Quantization,
             Extension::Friction { .. } => EffectId::Friction,
             Extension::ColouredNoise { .. } => EffectId::ColouredNoise,
+            Extension::DirectionDependent { .. } => EffectId::DirectionDependent,
         })
     }
 
@@ -228,6 +235,7 @@ impl Extension {
             Extension::CurvedBorders { .. } => 4,
             Extension::Periodic { .. } => 3,
             Extension::ColouredNoise { phi } => phi.len(),
+            Extension::DirectionDependent { a, b } => a.len() + b.len(),
         }
     }
 
@@ -262,6 +270,7 @@ impl Extension {
                 f_plus, f_minus, ..
             } => vec![*f_plus, *f_minus],
             Extension::ColouredNoise { phi } => phi.clone(),
+            Extension::DirectionDependent { a, b } => a.iter().chain(b).copied().collect(),
         }
     }
 
@@ -299,6 +308,30 @@ impl Extension {
                 form: *form,
             },
             Extension::ColouredNoise { .. } => Extension::ColouredNoise { phi: th.to_vec() },
+            Extension::DirectionDependent { a, .. } => Extension::DirectionDependent {
+                a: th[..a.len()].to_vec(),
+                b: th[a.len()..].to_vec(),
+            },
+        }
+    }
+
+    /// This extension on a base model of other orders: a falling set ([`Extension::DirectionDependent`])
+    /// takes the base's length, a new coefficient starting at the base's own (no direction dependence in it);
+    /// every other extension is unchanged.
+    fn fitted_to(&self, base: &BaseModel) -> Self {
+        match self {
+            Extension::DirectionDependent { a, b } => {
+                let resize = |fall: &[f64], own: &[f64]| -> Vec<f64> {
+                    (0..own.len())
+                        .map(|i| fall.get(i).copied().unwrap_or(own[i]))
+                        .collect()
+                };
+                Extension::DirectionDependent {
+                    a: resize(a, &base.a),
+                    b: resize(b, &base.b),
+                }
+            }
+            e => e.clone(),
         }
     }
 
@@ -349,6 +382,15 @@ impl Extension {
                     step: *step,
                     offset: *offset,
                 })
+            }
+            Extension::DirectionDependent { a, b } => {
+                let mut d = DirectionDependent {
+                    a: [0.0; MAX_ORDER],
+                    b: [0.0; MAX_ORDER + 1],
+                };
+                d.a.iter_mut().zip(a).for_each(|(d, s)| *d = *s);
+                d.b.iter_mut().zip(b).for_each(|(d, s)| *d = *s);
+                e.direction_dependent = Some(d);
             }
             Extension::Friction {
                 f_plus,
@@ -410,12 +452,20 @@ impl EffectModel {
         m
     }
 
-    /// This model's extensions on another base model.
+    /// This model's extensions on another base model (a falling set resized to its orders).
     pub fn rebased(&self, base: BaseModel) -> Self {
         Self {
+            exts: self.exts.iter().map(|e| e.fitted_to(&base)).collect(),
             base,
-            exts: self.exts.clone(),
         }
+    }
+
+    /// The linear block's falling set, if the model has one.
+    fn falling_set(&self) -> Option<(&[f64], &[f64])> {
+        self.exts.iter().find_map(|e| match e {
+            Extension::DirectionDependent { a, b } => Some((a.as_slice(), b.as_slice())),
+            _ => None,
+        })
     }
 
     /// The extension fitting catalogue entry `id`, if the model has it.
@@ -522,6 +572,9 @@ impl EffectModel {
             }
             Extension::Saturation { lo, hi } => lo <= hi,
             Extension::Quantization { step, .. } => *step > 0.0 && step.is_finite(),
+            Extension::DirectionDependent { a, b } => {
+                is_stable(a) && a.iter().chain(b).all(|v| v.is_finite())
+            }
             _ => true,
         })
     }
@@ -613,14 +666,26 @@ impl EffectModel {
         let x_rest = b.static_gain() * u_rest;
         let (mut w_prev, mut f_prev) = (b.rest_memory(x_rest, contact), 0.0);
         let d = b.delay;
-        for k in 0..n {
+        let fall = self.falling_set();
+        let linear = |a: &[f64], bb: &[f64], k: usize, xs: &[f64]| {
             let mut x = 0.0;
-            for (i, ai) in b.a.iter().enumerate() {
-                x -= ai * if k > i { sim.x[k - 1 - i] } else { x_rest };
+            for (i, ai) in a.iter().enumerate() {
+                x -= ai * if k > i { xs[k - 1 - i] } else { x_rest };
             }
-            for (j, bj) in b.b.iter().enumerate() {
+            for (j, bj) in bb.iter().enumerate() {
                 x += bj * if k >= d + j { u[k - d - j] } else { u_rest };
             }
+            x
+        };
+        for k in 0..n {
+            let rise = linear(&b.a, &b.b, k, &sim.x);
+            let x = match fall {
+                Some((fa, fb)) => {
+                    let prev = if k > 0 { sim.x[k - 1] } else { x_rest };
+                    DirectionDependent::choose(prev, rise, linear(fa, fb, k, &sim.x))
+                }
+                None => rise,
+            };
             if x.is_nan() || x.abs() > limit {
                 return false;
             }

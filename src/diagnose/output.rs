@@ -72,6 +72,13 @@ pub enum EffectParams {
         ar_order: usize,
         phi: Vec<f64>,
     },
+    DirectionDependent {
+        a_rise: Vec<f64>,
+        b_rise: Vec<f64>,
+        a_fall: Vec<f64>,
+        b_fall: Vec<f64>,
+        note: &'static str,
+    },
     None {},
 }
 
@@ -177,6 +184,13 @@ impl EffectParams {
             (_, Extension::ColouredNoise { phi }) => EffectParams::ColouredNoise {
                 ar_order: phi.len(),
                 phi: phi.clone(),
+            },
+            (_, Extension::DirectionDependent { a, b: bf }) => EffectParams::DirectionDependent {
+                a_rise: b.a.clone(),
+                b_rise: b.b.clone(),
+                a_fall: a.clone(),
+                b_fall: bf.clone(),
+                note: "x(k) = -sum a_rise_i x(k-i) + sum b_rise_j u(k-delay-j) unless that is below x(k-1); then the same with a_fall, b_fall",
             },
             (_, Extension::None) => EffectParams::None {},
         }

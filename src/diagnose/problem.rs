@@ -181,6 +181,13 @@ impl<'a> Problem<'a> {
             Extension::Saturation { .. } | Extension::Friction { .. } => vec![ys; 2],
             Extension::Periodic { .. } => vec![1.0 / self.n_fit as f64, 0.1 * ys, 0.1 * ys],
             Extension::ColouredNoise { phi } => vec![0.5; phi.len()],
+            // The base model's magnitudes for its coefficients ([`BaseModel::typical`]).
+            Extension::DirectionDependent { a, b } => {
+                let bmax = b.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-6);
+                let mut t = vec![0.5; a.len()];
+                t.extend(std::iter::repeat_n(bmax, b.len()));
+                t
+            }
         }
     }
 

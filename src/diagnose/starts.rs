@@ -64,6 +64,7 @@ pub fn plan(id: EffectId, cx: &StartContext) -> Option<Plan> {
         EffectId::PeriodicDisturbance => periodic(cx),
         EffectId::Quantization => quantization(cx),
         EffectId::Friction => friction(cx),
+        EffectId::DirectionDependent => direction_dependent(cx),
     }?;
     (!plan.alternatives.is_empty()).then_some(plan)
 }
@@ -90,6 +91,19 @@ fn curved_borders(cx: &StartContext) -> Option<Plan> {
         Extension::CurvedBorders {
             upper: [0.0; 2],
             lower: [0.0; 2],
+        },
+    );
+    Some(Plan::one(m.clone(), vec![m]))
+}
+
+/// The falling set starts as the block's own coefficients: the current model.
+fn direction_dependent(cx: &StartContext) -> Option<Plan> {
+    let b = &cx.current.base;
+    let m = with_ext(
+        cx,
+        Extension::DirectionDependent {
+            a: b.a.clone(),
+            b: b.b.clone(),
         },
     );
     Some(Plan::one(m.clone(), vec![m]))

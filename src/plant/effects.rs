@@ -23,6 +23,7 @@
 //! | coloured-noise | [`ColouredNoise`] | `phi`: AR(1) coefficient of the measurement noise | sensor |
 //! | saturation | [`Saturation`] | `lo`, `hi`, `before_noise` | sensor (or end stop) |
 //! | quantization | [`Quantization`] | `step`, `offset` | sensor (last) |
+//! | direction-dependent | [`DirectionDependent`] | the falling set `a`, `b` of the linear block | linear block |
 //! | extra-delay | none: `ArxParams::delay` | | linear block |
 //! | linear-order | none: `ArxParams::na`, `nb` and coefficients | | linear block |
 //!
@@ -36,6 +37,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::backlash::{BacklashParams, Mode};
+use super::linear::MAX_ORDER;
 use super::poly::PolyBacklash;
 use super::{ParamError, PlantParams, check_finite, check_non_negative, check_positive};
 
@@ -169,10 +171,30 @@ pub struct Quantization {
     pub offset: f64,
 }
 
+/// Direction-dependent dynamics (a motor driven up and coasting down, a valve opening against a spring and
+/// closing with it): the linear block has a second set of coefficients, `a`, `b` (same orders and delay),
+/// for while its output falls. At sample k the block computes `x_rise(k)` with its own coefficients and
+/// `x_fall(k)` with these over the same history; `x(k) = x_rise(k)` if that does not fall below `x(k-1)`,
+/// else `x_fall(k)` ([`DirectionDependent::choose`]). With `a`, `b` equal to the block's own the plant is
+/// the plain one. Entries beyond the block's `na` and `nb` are ignored, as in `ArxParams`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DirectionDependent {
+    pub a: [f64; MAX_ORDER],
+    pub b: [f64; MAX_ORDER + 1],
+}
+
+impl DirectionDependent {
+    /// The block's output at sample k from its rising-set and falling-set values and x(k-1).
+    pub fn choose(x_prev: f64, x_rise: f64, x_fall: f64) -> f64 {
+        if x_rise >= x_prev { x_rise } else { x_fall }
+    }
+}
+
 /// The optional effects; `Default` switches all of them off.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 #[serde(default)]
 pub struct Effects {
+    pub direction_dependent: Option<DirectionDependent>,
     pub gap_drift: Option<GapDrift>,
     pub curved_borders: Option<CurvedBorders>,
     pub friction: Option<Friction>,
@@ -185,6 +207,14 @@ pub struct Effects {
 impl Effects {
     /// Every enabled effect's parameters in range; the error names the first bad one.
     pub fn validate(&self) -> Result<(), ParamError> {
+        if let Some(d) = &self.direction_dependent {
+            for (i, v) in d.a.iter().enumerate() {
+                check_finite(&format!("a{}_fall", i + 1), *v)?;
+            }
+            for (j, v) in d.b.iter().enumerate() {
+                check_finite(&format!("b{j}_fall"), *v)?;
+            }
+        }
         if let Some(g) = &self.gap_drift {
             check_finite("c1_rate", g.c1_rate)?;
             check_finite("c2_rate", g.c2_rate)?;

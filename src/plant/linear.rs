@@ -149,16 +149,27 @@ impl Arx {
     /// x(k) from the inputs and outputs pushed so far (u(k-1) and x(k-1) newest). It does not read u(k):
     /// the delay is at least one sample, so the block has no direct feedthrough.
     pub fn peek(&self) -> f64 {
-        let p = &self.params;
+        self.peek_with(self.params.a(), self.params.b())
+    }
+
+    /// x(k) as [`Arx::peek`] but with the coefficients `a`, `b` over the same history (the falling set of a
+    /// direction-dependent block, [`crate::plant::effects::DirectionDependent`]); the orders and the delay
+    /// are the block's, so `a` and `b` must not be longer than `na` and `nb + 1`.
+    pub fn peek_with(&self, a: &[f64], b: &[f64]) -> f64 {
         let mut x = 0.0;
-        for (i, a) in p.a().iter().enumerate() {
+        for (i, a) in a.iter().enumerate() {
             x -= a * self.x_hist.get(i);
         }
         // u_hist.get(0) is u(k-1): u(k-d-j) is age d + j - 1.
-        for (j, b) in p.b().iter().enumerate() {
-            x += b * self.u_hist.get(p.delay + j - 1);
+        for (j, b) in b.iter().enumerate() {
+            x += b * self.u_hist.get(self.params.delay + j - 1);
         }
         x
+    }
+
+    /// x(k-1), the newest output pushed (0 before the first).
+    pub fn last_output(&self) -> f64 {
+        self.x_hist.get(0)
     }
 
     /// Close sample k: remember its input `u_k` and output `x_k`.

@@ -210,6 +210,13 @@ impl PlantExtensions {
                 ));
             }
         }
+        if self.continuous.is_some() && self.effects.direction_dependent.is_some() {
+            return Err(ParamError::new(
+                "direction-dependent dynamics",
+                1.0,
+                "acts on the ARX block's coefficients and cannot be combined with a continuous transfer function",
+            ));
+        }
         if let Some((tf, ts)) = &self.continuous {
             tf.validate()?;
             check_positive("Ts", *ts)?;
@@ -249,6 +256,20 @@ impl Linear {
     }
 }
 
+/// The falling set of a direction-dependent block must be stable on the block's own orders (a block that
+/// falls forever is no plant).
+fn check_falling_set(d: &effects::DirectionDependent, arx: &ArxParams) -> Result<(), ParamError> {
+    if linear::is_stable(&d.a[..arx.na]) {
+        Ok(())
+    } else {
+        Err(ParamError::new(
+            "a1_fall",
+            d.a[0],
+            "the falling set a1_fall..a4_fall of the direction-dependent block must be stable (all roots inside the unit circle)",
+        ))
+    }
+}
+
 /// The plant with its state.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Plant {
@@ -272,6 +293,9 @@ impl Plant {
     pub fn with_extensions(params: PlantParams, ext: &PlantExtensions) -> Result<Self, ParamError> {
         params.validate()?;
         ext.validate()?;
+        if let Some(d) = &ext.effects.direction_dependent {
+            check_falling_set(d, &params.arx)?;
+        }
         let linear = match &ext.continuous {
             Some((tf, ts)) => Linear::Continuous(ContinuousLinear::new(tf.clone(), *ts)?),
             None => Linear::Arx(Arx::new(params.arx)),
@@ -334,6 +358,9 @@ impl Plant {
         }
         if let Some((e, st)) = &self.effects {
             e.validate().map_err(|e| e.to_string())?;
+            if let Some(d) = &e.direction_dependent {
+                check_falling_set(d, &self.params.arx).map_err(|e| e.to_string())?;
+            }
             if ![st.w, st.f, st.n].iter().all(|v| v.is_finite()) {
                 return Err("the effects' state is not finite".into());
             }
@@ -359,7 +386,18 @@ impl Plant {
     }
 
     fn compute(&mut self, w_prev: f64) -> PlantOutput {
-        let x = self.linear.peek();
+        let x = match (&self.linear, &self.effects) {
+            (Linear::Arx(arx), Some((e, _))) if e.direction_dependent.is_some() => {
+                let d = e
+                    .direction_dependent
+                    .as_ref()
+                    .expect("checked in the pattern");
+                let p = &arx.params;
+                let fall = arx.peek_with(&d.a[..p.na], &d.b[..=p.nb]);
+                effects::DirectionDependent::choose(arx.last_output(), arx.peek(), fall)
+            }
+            _ => self.linear.peek(),
+        };
         if let Some((e, st)) = &mut self.effects {
             // One standard normal draw per sample when there is noise, as on the plain path, so that the same
             // seed gives the same noise sequence with and without effects.
@@ -558,6 +596,67 @@ mod tests {
         let e = Plant::with_extensions(PlantParams::PAPER, &ext).unwrap_err();
         assert_eq!(e.name, "gap drift");
         assert!(e.reason.contains("polynomial borders"), "{e}");
+    }
+
+    /// x(k) = 0.5 x(k-1) + u(k-1) rising, 0.9 x(k-1) + 0.1 u(k-1) falling, u = 1, 1, 0, 0, 0:
+    /// x1 = 1 (rise 1 >= 0), x2 = 1.5, x3: rise 0.75 < 1.5 so fall 0.9 * 1.5 = 1.35, x4 = 0.9 * 1.35 = 1.215.
+    /// With the falling set equal to the block's own the plant is the plain one, bit for bit.
+    #[test]
+    fn direction_dependent_block_by_hand() {
+        use effects::DirectionDependent;
+        let mut p = PlantParams::PAPER;
+        p.arx = ArxParams {
+            na: 1,
+            nb: 0,
+            delay: 1,
+            a: [-0.5, 0.0, 0.0, 0.0],
+            b: [1.0, 0.0, 0.0, 0.0, 0.0],
+        };
+        let with = |a: [f64; MAX_ORDER], b: [f64; MAX_ORDER + 1]| PlantExtensions {
+            effects: Effects {
+                direction_dependent: Some(DirectionDependent { a, b }),
+                ..Effects::default()
+            },
+            ..PlantExtensions::default()
+        };
+        let u = [1.0, 1.0, 0.0, 0.0, 0.0];
+        let run = |ext: &PlantExtensions| {
+            let mut plant = Plant::with_extensions(p, ext).unwrap();
+            let xs: Vec<f64> = u
+                .iter()
+                .map(|&uk| {
+                    let x = plant.output().x;
+                    plant.advance(uk);
+                    x
+                })
+                .collect();
+            assert!(plant.check().is_ok());
+            xs
+        };
+        let xs = run(&with([-0.9, 0.0, 0.0, 0.0], [0.1, 0.0, 0.0, 0.0, 0.0]));
+        let want = [0.0, 1.0, 1.5, 1.35, 1.215];
+        for (x, w) in xs.iter().zip(want) {
+            assert!((x - w).abs() < 1e-12, "{xs:?}");
+        }
+        let plain: Vec<f64> = Plant::simulate(p, &u)
+            .unwrap()
+            .iter()
+            .map(|o| o.x)
+            .collect();
+        assert_eq!(run(&with(p.arx.a, p.arx.b)), plain);
+        // An unstable falling set, and the effect on a continuous block, are refused by name.
+        let err = Plant::with_extensions(p, &with([-1.5, 0.0, 0.0, 0.0], p.arx.b)).unwrap_err();
+        assert_eq!(err.name, "a1_fall");
+        let mut cont = with(p.arx.a, p.arx.b);
+        cont.continuous = Some((
+            TransferFunction {
+                num: vec![1.0],
+                den: vec![1.0, 1.0],
+            },
+            0.1,
+        ));
+        let err = Plant::with_extensions(p, &cont).unwrap_err();
+        assert!(err.reason.contains("continuous"), "{err}");
     }
 
     #[test]
