@@ -500,6 +500,28 @@ fn evidence(
                 phi.len()
             ))
         }
+        (Some(EffectId::DirectionDependent), Some(_)) => {
+            // The held-out output over time, at most 400 samples so that single rises and falls show.
+            let end = n.min(nf + 400);
+            let after = &d.effect().expect("the arm matched an effect").output;
+            line_plot(
+                &path,
+                "Evidence for direction-dependent: rises and falls (held-out part)",
+                input.columns[0],
+                input.columns[2],
+                &[
+                    Series::line("measured", pts(&t[nf..end], &input.y[nf..end])).color(7),
+                    Series::line("declared model", pts(&t[nf..end], &sim.y[nf..end])).color(3),
+                    Series::line(after_label, pts(&t[nf..end], &after[nf..end])).color(0),
+                ],
+                Axes::LINEAR,
+            )?;
+            Ok(format!(
+                "Pointing test: {test}. The measured output rises and falls at different speeds; the declared \
+                 linear block has one set of coefficients for both (red), the block with a falling set follows \
+                 both (blue)."
+            ))
+        }
         (Some(EffectId::ExtraDelay | EffectId::LinearOrder), _) => {
             let lags = d.config.lags.min(nf / 5).max(1);
             let band = Z95 / (nf as f64).sqrt();

@@ -4,11 +4,12 @@ use super::backlash_plant::{self as md, Var};
 use crate::fmi2::Model;
 use crate::fmi2::vars::{Value, VarInfo};
 use crate::plant::effects::{
-    ColouredNoise, CurvedBorders, Effects, Friction, FrictionForm, GapDrift, Periodic,
-    Quantization, Saturation,
+    ColouredNoise, CurvedBorders, DirectionDependent, Effects, Friction, FrictionForm, GapDrift,
+    Periodic, Quantization, Saturation,
 };
 use crate::plant::{
-    Plant, PlantExtensions, PlantOutput, PlantParams, PolyBacklashParams, TransferFunction,
+    MAX_ORDER, Plant, PlantExtensions, PlantOutput, PlantParams, PolyBacklashParams,
+    TransferFunction,
 };
 use serde::{Deserialize, Serialize};
 
@@ -52,6 +53,11 @@ struct Bench {
     saturation: i32,
     sat: [f64; 2],
     quant: [f64; 2],
+    direction_dependent: i32,
+    /// a1_fall..a4_fall.
+    fall_a: [f64; MAX_ORDER],
+    /// b0_fall..b4_fall.
+    fall_b: [f64; MAX_ORDER + 1],
 }
 
 impl Bench {
@@ -67,6 +73,9 @@ impl Bench {
         saturation: 0,
         sat: [-1.0, 1.0],
         quant: [0.0; 2],
+        direction_dependent: 0,
+        fall_a: [0.0; MAX_ORDER],
+        fall_b: [0.0; MAX_ORDER + 1],
     };
 
     /// The library's effects, with rates and frequencies per sample of period `ts`. The layer has checked
@@ -78,6 +87,18 @@ impl Bench {
             Err(format!("parameter {name} = {v} is invalid: {why}"))
         };
         let mut e = Effects::default();
+        match self.direction_dependent {
+            0 => {}
+            1 => {
+                e.direction_dependent = Some(DirectionDependent {
+                    a: self.fall_a,
+                    b: self.fall_b,
+                })
+            }
+            v => {
+                return bad("direction_dependent", v as f64, "must be 0 (off) or 1 (on)");
+            }
+        }
         if self.c_rate != [0.0; 2] {
             e.gap_drift = Some(GapDrift {
                 c1_rate: self.c_rate[0] * ts,
@@ -339,6 +360,16 @@ impl Model for PlantFmu {
             Var::SatHi => r(b.sat[1]),
             Var::QuantStep => r(b.quant[0]),
             Var::QuantOffset => r(b.quant[1]),
+            Var::DirectionDependent => Value::Integer(b.direction_dependent),
+            Var::A1Fall => r(b.fall_a[0]),
+            Var::A2Fall => r(b.fall_a[1]),
+            Var::A3Fall => r(b.fall_a[2]),
+            Var::A4Fall => r(b.fall_a[3]),
+            Var::B0Fall => r(b.fall_b[0]),
+            Var::B1Fall => r(b.fall_b[1]),
+            Var::B2Fall => r(b.fall_b[2]),
+            Var::B3Fall => r(b.fall_b[3]),
+            Var::B4Fall => r(b.fall_b[4]),
         }
     }
 
@@ -415,6 +446,16 @@ impl Model for PlantFmu {
             Var::SatHi => self.bench.sat[1] = x,
             Var::QuantStep => self.bench.quant[0] = x,
             Var::QuantOffset => self.bench.quant[1] = x,
+            Var::DirectionDependent => self.bench.direction_dependent = value.as_integer(),
+            Var::A1Fall => self.bench.fall_a[0] = x,
+            Var::A2Fall => self.bench.fall_a[1] = x,
+            Var::A3Fall => self.bench.fall_a[2] = x,
+            Var::A4Fall => self.bench.fall_a[3] = x,
+            Var::B0Fall => self.bench.fall_b[0] = x,
+            Var::B1Fall => self.bench.fall_b[1] = x,
+            Var::B2Fall => self.bench.fall_b[2] = x,
+            Var::B3Fall => self.bench.fall_b[3] = x,
+            Var::B4Fall => self.bench.fall_b[4] = x,
             // Outputs: the layer refuses to set them before calling here.
             Var::Y | Var::W | Var::X | Var::F => {}
         }

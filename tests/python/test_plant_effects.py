@@ -127,6 +127,28 @@ def test_each_effect_matches_an_independent_numpy_bench(plant_fmu, case):
     assert np.max(np.abs(got["y"] - white["y"])) > 1e-3
 
 
+def test_direction_dependent_block_matches_numpy(plant_fmu):
+    """The falling set as the XML describes it: x(k) is the value of a1..a4, b0..b4 unless that is below
+    x(k-1), then the value of a1_fall..b4_fall over the same history; the backlash after it is the plain one."""
+    u = _input(1200, 8)
+    start = {"direction_dependent": 1, "a1_fall": 0.2, "a2_fall": 0.1, "b0_fall": 0.5}
+    got = _run(plant_fmu, u, start)
+    x = np.zeros(len(u))
+    for k in range(len(u)):
+        def value(a, b):
+            past = sum(-ai * x[k - 1 - i] for i, ai in enumerate(a) if k - 1 - i >= 0)
+            return past + (b[0] * u[k - 1] if k >= 1 else 0.0)
+        prev = x[k - 1] if k > 0 else 0.0
+        rise = value(PAPER["a"], PAPER["b"])
+        x[k] = rise if rise >= prev else value((0.2, 0.1), (0.5,))
+    np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-12)
+    w, _, _ = bench(x, np.zeros(len(u)), PAPER)
+    np.testing.assert_allclose(got["w"], w, rtol=0, atol=1e-12)
+    # The effect does something: x differs from the plain block's.
+    x_ref, _ = reference.simulate(u, **PAPER)
+    assert np.max(np.abs(got["x"] - x_ref)) > 0.1
+
+
 def test_effects_off_is_the_plain_plant(plant_fmu):
     """Neutral settings (zero amplitude and rates, saturation limits far outside the signal) give the plain
     plant bit for bit."""
@@ -148,7 +170,7 @@ def _slave(plant_fmu, unzipped):
     return s, {v.name: v.valueReference for v in md.modelVariables}
 
 
-@pytest.mark.parametrize("name,value", [("friction", 3), ("saturation", -1)])
+@pytest.mark.parametrize("name,value", [("friction", 3), ("saturation", -1), ("direction_dependent", 2)])
 def test_out_of_range_switches_are_refused_when_set(plant_fmu, name, value):
     from fmpy import extract
     import shutil
@@ -190,6 +212,7 @@ def test_bench_values_outside_the_declared_range_are_refused_when_set(plant_fmu,
     ({"border": 1}, {"fa1": 1.0, "fd1": 1.0, "c1_rate": 0.1}, "c1_rate"),
     ({"border": 1, "friction": 2}, {"fa1": 1.0, "fd1": 1.0}, "contact friction"),
     ({"friction": 2}, {"curve_up2": 0.1}, "curved borders"),
+    ({"direction_dependent": 1}, {"a1_fall": 1.5, "b0_fall": 0.8}, "a1_fall"),
 ])
 def test_inconsistent_bench_parameters_are_refused_at_exit_initialization(plant_fmu, ints, reals, reason):
     from fmpy import extract
@@ -224,6 +247,9 @@ DIAGNOSED = {
     "periodic-disturbance": {"dist_amplitude": 0.06, "dist_omega": 70.0, "dist_phase": 1.0},
     "quantization": {"quant_step": 0.3, "noise_std": 0.02},
     "friction": {"friction": 1, "k_e": 1.0, "f_plus": 0.9, "f_minus": 0.9},
+    # While x falls the poles are 0.55 times the rising ones (a_i times 0.55^i), b0 keeps the static gain.
+    "direction-dependent": {"direction_dependent": 1, "a1_fall": 0.45 * 0.55, "a2_fall": 0.55 * 0.55**2,
+                            "b0_fall": 0.8 * (1 + 0.45 * 0.55 + 0.55 * 0.55**2) / 2.0},
 }
 
 
