@@ -122,18 +122,45 @@ fn nested(
         .arg(target_dir)
         .arg("--target")
         .arg(triple)
-        .env("BACKLASH_FMU_NESTED", "1")
-        // The outer cargo's jobserver is not shared: the nested build runs with its own job count.
-        .env_remove("MAKEFLAGS")
-        .env_remove("CARGO_MAKEFLAGS")
-        .env_remove("MFLAGS")
-        // Flags meant for the outer build (a host-only linker, coverage) do not apply to the FMU binary.
-        .env_remove("CARGO_ENCODED_RUSTFLAGS")
-        .env_remove("RUSTFLAGS");
+        // Only the environment a shell gives cargo: the outer build's own variables (its jobserver, flags,
+        // a linker or C compiler a wheel builder sets for its target, profile overrides) are not for the FMU
+        // binary, and any difference would make the nested build start over each time the outer one
+        // changes (a `cargo build` after a wheel build).
+        .env_clear()
+        .envs(std::env::vars_os().filter(|(k, _)| k.to_str().is_some_and(passed_to_nested)))
+        .env("BACKLASH_FMU_NESTED", "1");
     if std::env::var_os("CARGO_NET_OFFLINE").is_some() {
         cmd.arg("--offline");
     }
     cmd
+}
+
+/// The variables the nested build keeps: where the toolchain and its caches are, the network settings a
+/// download needs, the locale and the temporary directory.
+fn passed_to_nested(name: &str) -> bool {
+    const EXACT: [&str; 13] = [
+        "PATH",
+        "HOME",
+        "USER",
+        "TMPDIR",
+        "LANG",
+        "LC_ALL",
+        "CARGO_HOME",
+        "RUSTUP_HOME",
+        "RUSTUP_TOOLCHAIN",
+        "SSL_CERT_FILE",
+        "SSL_CERT_DIR",
+        "NO_PROXY",
+        "no_proxy",
+    ];
+    const PREFIXES: [&str; 5] = [
+        "CARGO_NET_",
+        "CARGO_HTTP_",
+        "CARGO_REGISTRIES_",
+        "HTTP",
+        "http",
+    ];
+    EXACT.contains(&name) || PREFIXES.iter().any(|p| name.starts_with(p))
 }
 
 fn run(mut cmd: Command, what: &str) -> Result<(), String> {

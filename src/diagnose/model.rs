@@ -824,6 +824,10 @@ pub(crate) mod tests {
                 f_minus: 1.1,
                 form: FrictionForm::Contact,
             },
+            Extension::DirectionDependent {
+                a: vec![0.2, 0.15],
+                b: vec![0.5],
+            },
         ];
         // Each alone, and every pair that combines (in both orders of adding them).
         let mut models: Vec<EffectModel> = exts
@@ -838,7 +842,7 @@ pub(crate) mod tests {
                 }
             }
         }
-        assert!(models.len() > 40, "{}", models.len());
+        assert!(models.len() > 50, "{}", models.len());
         for m in models {
             let s = m.simulate(&u, Rest::ZERO, u.len(), 1e9).unwrap();
             let bench = simulate_with_effects(&p, &m.effects(), &u, 0).unwrap();
@@ -853,6 +857,43 @@ pub(crate) mod tests {
                 assert!((s.x[k] - o.x).abs() < 1e-12);
             }
         }
+    }
+
+    /// A falling set packs as a then b, follows the base model's orders when rebased (a new coefficient
+    /// starts at the base's own), and an unstable one is not a valid model.
+    #[test]
+    fn falling_set_packs_rebases_and_must_be_stable() {
+        let fall = Extension::DirectionDependent {
+            a: vec![0.2, 0.15],
+            b: vec![0.5],
+        };
+        let m = EffectModel::plain(paper_base()).with(fall.clone());
+        let th = m.pack(1.0);
+        assert_eq!(th[7..], [0.2, 0.15, 0.5]);
+        assert_eq!(m.unpack(&th, 1.0), m);
+        let wider = m.rebased(paper_base().with_orders(3, 1, 1));
+        assert_eq!(
+            wider.exts[0],
+            Extension::DirectionDependent {
+                a: vec![0.2, 0.15, 0.0],
+                b: vec![0.5, 0.0],
+            }
+        );
+        let narrower = m.rebased(paper_base().with_orders(1, 0, 1));
+        assert_eq!(
+            narrower.exts[0],
+            Extension::DirectionDependent {
+                a: vec![0.2],
+                b: vec![0.5],
+            }
+        );
+        let u = input(50);
+        assert!(m.simulate(&u, Rest::ZERO, 50, 1e9).is_some());
+        let unstable = EffectModel::plain(paper_base()).with(Extension::DirectionDependent {
+            a: vec![-1.5, 0.0],
+            b: vec![0.5],
+        });
+        assert!(unstable.simulate(&u, Rest::ZERO, 50, 1e9).is_none());
     }
 
     #[test]

@@ -365,6 +365,7 @@ fn friction(cx: &StartContext) -> Option<Plan> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::diagnose::model::Rest;
 
     #[test]
     fn friction_gains_grow_by_sqrt_2_up_to_twice_the_ratio() {
@@ -691,5 +692,28 @@ mod tests {
                 lower: [0.0; 2]
             }]
         );
+    }
+
+    /// The falling set starts as the block's own coefficients, so the start simulates as the current model.
+    #[test]
+    fn direction_dependent_starts_at_the_current_model() {
+        let m = paper();
+        let y = vec![0.0; 10];
+        let p = plan(EffectId::DirectionDependent, &context(&m, &y, &y, &y)).unwrap();
+        assert_eq!(p.alternatives.len(), 1);
+        let start = &p.alternatives[0].starts[0];
+        assert_eq!(
+            start.exts,
+            vec![Extension::DirectionDependent {
+                a: m.base.a.clone(),
+                b: m.base.b.clone()
+            }]
+        );
+        let u: Vec<f64> = (0..80).map(|k| (0.3 * k as f64).sin()).collect();
+        let (plain, with) = (
+            m.simulate(&u, Rest::ZERO, 80, 1e9).unwrap(),
+            start.simulate(&u, Rest::ZERO, 80, 1e9).unwrap(),
+        );
+        assert_eq!(plain.y, with.y);
     }
 }
