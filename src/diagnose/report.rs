@@ -982,3 +982,6 @@ mod tests {
         assert_eq!(params_text(&serde_json::json!({})), "");
     }
 }
+
+#[cfg(test)]
+mod mutation_tests;

@@ -1,0 +1,75 @@
+//! Tests that pin behaviour a mutation sample found unchecked.
+
+use super::*;
+use crate::diagnose::model::Rest;
+use crate::diagnose::model::tests::paper_base;
+
+/// A judged candidate's numbers on a record whose output is the paper model's plus 0.3 (n = 80, fit part 60):
+/// the held-out error is 0.3 on every sample, the fit RMSE sqrt(cost / 60), and the BIC
+/// 60 ln(0.4 / 60) + 6 ln 60 (k = 6: a1, a2, b0, m2, c1, c2) = -276.07205027, plus the current model's
+/// penalty 0.5, plus the extra delay's ln 3: -274.47343798 (numpy: 60*np.log(0.4/60)+6*np.log(60)+0.5+np.log(3)).
+/// The fit counts as stuck (and says so) exactly when its cost equals the current model's.
+#[test]
+fn judge_adds_every_penalty_to_the_bic() {
+    let n = 80;
+    let u: Vec<f64> = (0..n)
+        .map(|k| 2.0 * (k as f64 * 0.37).sin() + (k as f64 * 0.05).cos())
+        .collect();
+    let model = EffectModel::plain(paper_base());
+    let sim = model
+        .simulate(&u, Rest::ZERO, n, 1e6)
+        .expect("the paper model runs");
+    let y: Vec<f64> = sim.y.iter().map(|v| v + 0.3).collect();
+    let p = Problem::new(&u, &y, 60, LmOptions::default());
+    let cfg = DiagnoseConfig::new(2, 0, 1);
+    let held = vec![0.6; 20];
+    let no_mrgia = |_: usize, _: usize, _: usize| None;
+    let context = |base_cost: f64| Context {
+        p: &p,
+        cfg: &cfg,
+        base_cost,
+        base_bic: 10.0,
+        penalty: 0.5,
+        base_heldout: &held,
+        starts: StartContext {
+            current: &model,
+            u: &u[..60],
+            y: &y[..60],
+            residual: &held,
+            y_scale: p.y_scale,
+            omega: 0.1,
+            lattice: None,
+            clip: (-1.0, 1.0),
+            mrgia: &no_mrgia,
+        },
+    };
+    let c = context(1.0)
+        .judge(
+            EffectId::ExtraDelay,
+            vec![],
+            (model.clone(), 0.4, Objective::Simulation),
+        )
+        .expect("the paper model simulates");
+    assert_eq!(c.k, 6);
+    assert!((c.bic - -274.473_437_98).abs() < 1e-6, "{}", c.bic);
+    assert!(
+        (c.delta_bic - -284.473_437_98).abs() < 1e-6,
+        "{}",
+        c.delta_bic
+    );
+    assert!((c.heldout_rmse - 0.3).abs() < 1e-9, "{}", c.heldout_rmse);
+    assert!(
+        (c.fit_rmse - 0.081_649_658_09).abs() < 1e-9,
+        "{}",
+        c.fit_rmse
+    );
+    assert!(!c.reason.contains("no valid step"), "{}", c.reason);
+    let stuck = context(0.4)
+        .judge(
+            EffectId::ExtraDelay,
+            vec![],
+            (model.clone(), 0.4, Objective::Simulation),
+        )
+        .expect("the paper model simulates");
+    assert!(stuck.reason.contains("no valid step"), "{}", stuck.reason);
+}
