@@ -73,3 +73,51 @@ fn judge_adds_every_penalty_to_the_bic() {
         .expect("the paper model simulates");
     assert!(stuck.reason.contains("no valid step"), "{}", stuck.reason);
 }
+
+/// A residual that is a sinusoid at a frequency the input carries is model error driven by the input: the
+/// round sets the periodic disturbance aside, says so, and (every other effect excluded here, so nothing is
+/// fitted) tries nothing. The input is a pure sinusoid at 0.3 rad/sample, so its periodogram at the
+/// residual's peak is far above its median (the threshold is 20 times).
+#[test]
+fn a_residual_line_the_input_carries_is_set_aside() {
+    let (n, n_fit) = (400, 300);
+    let u: Vec<f64> = (0..n).map(|k| 2.0 * (0.3 * k as f64).sin()).collect();
+    let model = EffectModel::plain(paper_base());
+    let sim = model
+        .simulate(&u, Rest::ZERO, n, 1e6)
+        .expect("the paper model runs");
+    let e: Vec<f64> = (0..n).map(|k| 0.5 * (0.3 * k as f64).sin()).collect();
+    let y: Vec<f64> = sim.y.iter().zip(&e).map(|(s, r)| s + r).collect();
+    assert!(input_line_ratio(&u[..n_fit], 0.3) > INPUT_LINE_RATIO);
+    let p = Problem::new(&u, &y, n_fit, LmOptions::default());
+    let cfg = DiagnoseConfig::new(2, 0, 1);
+    let others: Vec<EffectId> = EffectId::ALL
+        .into_iter()
+        .filter(|id| *id != EffectId::PeriodicDisturbance)
+        .collect();
+    let found = find(
+        &p,
+        &cfg,
+        Current {
+            model: &model,
+            sim: &sim,
+            e: &e,
+            cost: 1.0,
+            bic: 0.0,
+            penalty: 0.0,
+            exclude: &others,
+            fitted: &[],
+        },
+    );
+    assert!(
+        found
+            .tests
+            .iter()
+            .any(|t| t.verdict.name == test_names::SPECTRUM_PEAK && t.verdict.rejects),
+        "the sinusoidal residual has a spectrum peak"
+    );
+    assert_eq!(found.set_aside.len(), 1, "{:?}", found.set_aside);
+    assert!(found.set_aside[0].starts_with("periodic-disturbance"));
+    assert!(found.candidates.is_empty() && found.not_tried.is_empty());
+    assert_eq!(found.chosen, None);
+}
