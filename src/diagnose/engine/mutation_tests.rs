@@ -121,3 +121,31 @@ fn a_residual_line_the_input_carries_is_set_aside() {
     assert!(found.candidates.is_empty() && found.not_tried.is_empty());
     assert_eq!(found.chosen, None);
 }
+
+/// The linear model's errors as the report shows them: on a record whose output is the linear model's plus
+/// 0.3 (n = 80, fit part 60) with a fit-part cost of 0.6, the fit RMSE is sqrt(0.6 / 60) = 0.1 and the
+/// held-out RMSE 0.3; the output is the model's simulation.
+#[test]
+fn linear_fit_reports_the_rmse_per_sample() {
+    let n = 80;
+    let u: Vec<f64> = (0..n)
+        .map(|k| 2.0 * (k as f64 * 0.37).sin() + (k as f64 * 0.05).cos())
+        .collect();
+    let lin = BaseModel {
+        m2: 1.0,
+        ..paper_base()
+    };
+    let sim = EffectModel::plain(lin.clone())
+        .simulate(&u, Rest::ZERO, n, 1e6)
+        .expect("the linear model runs");
+    let y: Vec<f64> = sim.y.iter().map(|v| v + 0.3).collect();
+    let p = Problem::new(&u, &y, 60, LmOptions::default());
+    let fit = linear_fit(&p, &(lin, 0.6));
+    assert!((fit.fit_rmse - 0.1).abs() < 1e-12, "{}", fit.fit_rmse);
+    assert!(
+        (fit.heldout_rmse - 0.3).abs() < 1e-9,
+        "{}",
+        fit.heldout_rmse
+    );
+    assert_eq!(fit.output, sim.y);
+}
