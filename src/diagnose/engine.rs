@@ -1021,3 +1021,6 @@ pub fn mode_value(m: crate::plant::Mode) -> f64 {
         crate::plant::Mode::Held => 0.0,
     }
 }
+
+#[cfg(test)]
+mod mutation_tests;

@@ -687,3 +687,6 @@ mod tests {
         }
     }
 }
+
+#[cfg(test)]
+mod mutation_tests;

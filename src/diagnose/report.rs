@@ -1004,3 +1004,6 @@ mod tests {
         assert_eq!(params_text(&serde_json::json!({})), "");
     }
 }
+
+#[cfg(test)]
+mod mutation_tests;

@@ -1,0 +1,151 @@
+//! Tests that pin behaviour a mutation sample found unchecked.
+
+use super::*;
+use crate::diagnose::model::Rest;
+use crate::diagnose::model::tests::paper_base;
+
+/// A judged candidate's numbers on a record whose output is the paper model's plus 0.3 (n = 80, fit part 60):
+/// the held-out error is 0.3 on every sample, the fit RMSE sqrt(cost / 60), and the BIC
+/// 60 ln(0.4 / 60) + 6 ln 60 (k = 6: a1, a2, b0, m2, c1, c2) = -276.07205027, plus the current model's
+/// penalty 0.5, plus the extra delay's ln 3: -274.47343798 (numpy: 60*np.log(0.4/60)+6*np.log(60)+0.5+np.log(3)).
+/// The fit counts as stuck (and says so) exactly when its cost equals the current model's.
+#[test]
+fn judge_adds_every_penalty_to_the_bic() {
+    let n = 80;
+    let u: Vec<f64> = (0..n)
+        .map(|k| 2.0 * (k as f64 * 0.37).sin() + (k as f64 * 0.05).cos())
+        .collect();
+    let model = EffectModel::plain(paper_base());
+    let sim = model
+        .simulate(&u, Rest::ZERO, n, 1e6)
+        .expect("the paper model runs");
+    let y: Vec<f64> = sim.y.iter().map(|v| v + 0.3).collect();
+    let p = Problem::new(&u, &y, 60, LmOptions::default());
+    let cfg = DiagnoseConfig::new(2, 0, 1);
+    let held = vec![0.6; 20];
+    let no_mrgia = |_: usize, _: usize, _: usize| None;
+    let context = |base_cost: f64| Context {
+        p: &p,
+        cfg: &cfg,
+        base_cost,
+        base_bic: 10.0,
+        penalty: 0.5,
+        base_heldout: &held,
+        starts: StartContext {
+            current: &model,
+            u: &u[..60],
+            y: &y[..60],
+            residual: &held,
+            y_scale: p.y_scale,
+            omega: 0.1,
+            lattice: None,
+            clip: (-1.0, 1.0),
+            mrgia: &no_mrgia,
+        },
+    };
+    let c = context(1.0)
+        .judge(
+            EffectId::ExtraDelay,
+            vec![],
+            (model.clone(), 0.4, Objective::Simulation),
+        )
+        .expect("the paper model simulates");
+    assert_eq!(c.k, 6);
+    assert!((c.bic - -274.473_437_98).abs() < 1e-6, "{}", c.bic);
+    assert!(
+        (c.delta_bic - -284.473_437_98).abs() < 1e-6,
+        "{}",
+        c.delta_bic
+    );
+    assert!((c.heldout_rmse - 0.3).abs() < 1e-9, "{}", c.heldout_rmse);
+    assert!(
+        (c.fit_rmse - 0.081_649_658_09).abs() < 1e-9,
+        "{}",
+        c.fit_rmse
+    );
+    assert!(!c.reason.contains("no valid step"), "{}", c.reason);
+    let stuck = context(0.4)
+        .judge(
+            EffectId::ExtraDelay,
+            vec![],
+            (model.clone(), 0.4, Objective::Simulation),
+        )
+        .expect("the paper model simulates");
+    assert!(stuck.reason.contains("no valid step"), "{}", stuck.reason);
+}
+
+/// A residual that is a sinusoid at a frequency the input carries is model error driven by the input: the
+/// round sets the periodic disturbance aside, says so, and (every other effect excluded here, so nothing is
+/// fitted) tries nothing. The input is a pure sinusoid at 0.3 rad/sample, so its periodogram at the
+/// residual's peak is far above its median (the threshold is 20 times).
+#[test]
+fn a_residual_line_the_input_carries_is_set_aside() {
+    let (n, n_fit) = (400, 300);
+    let u: Vec<f64> = (0..n).map(|k| 2.0 * (0.3 * k as f64).sin()).collect();
+    let model = EffectModel::plain(paper_base());
+    let sim = model
+        .simulate(&u, Rest::ZERO, n, 1e6)
+        .expect("the paper model runs");
+    let e: Vec<f64> = (0..n).map(|k| 0.5 * (0.3 * k as f64).sin()).collect();
+    let y: Vec<f64> = sim.y.iter().zip(&e).map(|(s, r)| s + r).collect();
+    assert!(input_line_ratio(&u[..n_fit], 0.3) > INPUT_LINE_RATIO);
+    let p = Problem::new(&u, &y, n_fit, LmOptions::default());
+    let cfg = DiagnoseConfig::new(2, 0, 1);
+    let others: Vec<EffectId> = EffectId::ALL
+        .into_iter()
+        .filter(|id| *id != EffectId::PeriodicDisturbance)
+        .collect();
+    let found = find(
+        &p,
+        &cfg,
+        Current {
+            model: &model,
+            sim: &sim,
+            e: &e,
+            cost: 1.0,
+            bic: 0.0,
+            penalty: 0.0,
+            exclude: &others,
+            fitted: &[],
+        },
+    );
+    assert!(
+        found
+            .tests
+            .iter()
+            .any(|t| t.verdict.name == test_names::SPECTRUM_PEAK && t.verdict.rejects),
+        "the sinusoidal residual has a spectrum peak"
+    );
+    assert_eq!(found.set_aside.len(), 1, "{:?}", found.set_aside);
+    assert!(found.set_aside[0].starts_with("periodic-disturbance"));
+    assert!(found.candidates.is_empty() && found.not_tried.is_empty());
+    assert_eq!(found.chosen, None);
+}
+
+/// The linear model's errors as the report shows them: on a record whose output is the linear model's plus
+/// 0.3 (n = 80, fit part 60) with a fit-part cost of 0.6, the fit RMSE is sqrt(0.6 / 60) = 0.1 and the
+/// held-out RMSE 0.3; the output is the model's simulation.
+#[test]
+fn linear_fit_reports_the_rmse_per_sample() {
+    let n = 80;
+    let u: Vec<f64> = (0..n)
+        .map(|k| 2.0 * (k as f64 * 0.37).sin() + (k as f64 * 0.05).cos())
+        .collect();
+    let lin = BaseModel {
+        m2: 1.0,
+        ..paper_base()
+    };
+    let sim = EffectModel::plain(lin.clone())
+        .simulate(&u, Rest::ZERO, n, 1e6)
+        .expect("the linear model runs");
+    let y: Vec<f64> = sim.y.iter().map(|v| v + 0.3).collect();
+    let p = Problem::new(&u, &y, 60, LmOptions::default());
+    let fit = linear_fit(&p, &(lin, 0.6));
+    assert!((fit.fit_rmse - 0.1).abs() < 1e-12, "{}", fit.fit_rmse);
+    assert!(
+        (fit.heldout_rmse - 0.3).abs() < 1e-9,
+        "{}",
+        fit.heldout_rmse
+    );
+    assert_eq!(fit.output, sim.y);
+}

@@ -1,0 +1,96 @@
+//! Tests that pin behaviour a mutation sample found unchecked.
+
+use super::*;
+use crate::diagnose::model::tests::paper_base;
+
+/// The divergence bound is 1e4 (1 + max|u| + max|y|), the maxima taken over absolute values:
+/// with max|u| = 2 (a negative sample) and max|y| = 3 (a negative sample), 1e4 * (1 + 2 + 3) = 60 000.
+#[test]
+fn sim_limit_scales_with_the_largest_magnitudes() {
+    assert_eq!(sim_limit(&[-2.0, 1.0, 0.5], &[0.5, -3.0, 2.0]), 60_000.0);
+    // An all-zero record still gets the bound 1e4.
+    assert_eq!(sim_limit(&[0.0; 3], &[0.0; 3]), 1e4);
+}
+
+/// Up to `SCREEN_KEEP` (6) starts are not screened: each gets a short fit, so six starts of which five are
+/// invalid (m2 < 0, refused by the simulation) still yield the valid one's short fit, with its window cost.
+/// (Screening would drop the five and hand back the lone survivor unevaluated, cost `None`.)
+#[test]
+fn six_starts_are_all_fitted_without_screening() {
+    let n = 150;
+    let u: Vec<f64> = (0..n)
+        .map(|k| 2.0 * (k as f64 * 0.37).sin() + (k as f64 * 0.05).cos())
+        .collect();
+    let truth = EffectModel::plain(paper_base());
+    let y = truth
+        .simulate(&u, Rest::ZERO, n, 1e6)
+        .expect("the paper model runs")
+        .y;
+    let p = Problem::new(&u, &y, n, LmOptions::default());
+    assert!(!p.windowed());
+    let mut near = paper_base();
+    near.b[0] = 0.7;
+    let mut invalid = paper_base();
+    invalid.m2 = -1.0;
+    let mut starts = vec![EffectModel::plain(invalid); SCREEN_KEEP - 1];
+    starts.push(EffectModel::plain(near.clone()));
+    let start_cost = p
+        .cost(&EffectModel::plain(near), Objective::Simulation)
+        .expect("the valid start runs");
+    let (_, cost) = p
+        .explore(&truth, &starts, Objective::Simulation)
+        .expect("one start is valid");
+    let cost = cost.expect("a short fit ran and reported its window cost");
+    assert!(cost < start_cost, "{cost} >= {start_cost}");
+}
+
+/// With no iterations allowed and no restarts, the plain fit returns its best start as it is. On a record
+/// made by the linear model's own structure with its play widened by 0.01 of the output's spread on both
+/// borders, the best start is the linear model with a small play opened around it: c1 and c2 each moved by
+/// 0.01 y_scale, everything else the linear model's. (The record's spread is taken before the play is
+/// widened, so that start misses the truth by 0.01 of the spread's tiny change; every other start is off by
+/// a whole play, a whole gain or the whole dynamics.)
+#[test]
+fn plain_fit_opens_a_small_play_on_both_borders_of_the_linear_model() {
+    let n = 120;
+    let u: Vec<f64> = (0..n)
+        .map(|k| 10.0 * (k as f64 * 0.37).sin() + 5.0 * (k as f64 * 0.05).cos())
+        .collect();
+    // Parallel borders (m2 = m1 = 1): no input, however large, inverts the memory zone.
+    let lin = BaseModel {
+        m2: 1.0,
+        ..paper_base()
+    };
+    let run = |b: &BaseModel| {
+        EffectModel::plain(b.clone())
+            .simulate(&u, Rest::ZERO, n, 1e6)
+            .expect("the paper model runs")
+            .y
+    };
+    let spread = crate::stats::std_dev(&run(&lin));
+    let truth = BaseModel {
+        c1: lin.c1 + 0.01 * spread,
+        c2: lin.c2 + 0.01 * spread,
+        ..lin.clone()
+    };
+    let y = run(&truth);
+    let frozen = LmOptions {
+        max_iter: 0,
+        ..LmOptions::default()
+    };
+    let p = Problem::new(&u, &y, n, frozen);
+    // Far from 1, so that a play of 0.01 y_scale differs from one of 0.01 / y_scale.
+    assert!(p.y_scale > 2.0, "{}", p.y_scale);
+    let s = Structure {
+        na: 2,
+        nb: 0,
+        delay: 1,
+    };
+    let (m, _) = fit_plain(&p, s, 0, 0, &(lin.clone(), f64::INFINITY)).expect("the starts run");
+    let want = BaseModel {
+        c1: lin.c1 + 0.01 * p.y_scale,
+        c2: lin.c2 + 0.01 * p.y_scale,
+        ..lin
+    };
+    assert_eq!(m.base, want);
+}
