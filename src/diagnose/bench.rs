@@ -652,7 +652,7 @@ mod tests {
             ..DiagnoseConfig::new(na, nb, delay)
         };
         let err = diagnose(&s.u, &s.y, &bad).unwrap_err().to_string();
-        assert!(err.contains("between 1 and 9"), "{err}");
+        assert!(err.contains("between 1 and 10"), "{err}");
     }
 
     /// `stable` by hand: 1 + 0.45 z^-1 + 0.55 z^-2 (the paper's a) has poles of modulus sqrt(0.55) < 1;

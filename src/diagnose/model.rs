@@ -869,7 +869,7 @@ pub(crate) mod tests {
         };
         let m = EffectModel::plain(paper_base()).with(fall.clone());
         let th = m.pack(1.0);
-        assert_eq!(th[7..], [0.2, 0.15, 0.5]);
+        assert_eq!(th[6..], [0.2, 0.15, 0.5]);
         assert_eq!(m.unpack(&th, 1.0), m);
         let wider = m.rebased(paper_base().with_orders(3, 1, 1));
         assert_eq!(
