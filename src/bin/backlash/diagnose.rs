@@ -22,7 +22,7 @@ pub struct DiagnoseArgs {
     /// not tried.
     #[arg(long, default_value_t = 300.0)]
     pub time_budget: f64,
-    /// The most effects the loop adds, one per round (1 to 9; 1: name the first effect only).
+    /// The most effects the loop adds, one per round (between 1 and 10, the catalogue's size; 1: name the first effect only).
     #[arg(long, default_value_t = 3)]
     pub max_effects: usize,
     /// Print one JSON object on stdout and nothing else there.
