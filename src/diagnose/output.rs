@@ -505,3 +505,32 @@ impl Diagnosis {
         serde_json::to_value(DiagnosisOut::new(self, ts)).expect("plain data serialises")
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::model::tests::paper_base;
+
+    /// linear-order names the coefficient it added: a3 when na grew from 2 to 3 (its value the new a),
+    /// b1 when nb grew from 0 to 1.
+    #[test]
+    fn linear_order_names_the_added_coefficient() {
+        let current = EffectModel::plain(paper_base());
+        let mut more_a = paper_base().with_orders(3, 0, 1);
+        more_a.a[2] = 0.125;
+        let mut more_b = paper_base().with_orders(2, 1, 1);
+        more_b.b[1] = -0.25;
+        let named = |b: BaseModel| match EffectParams::of(
+            EffectId::LinearOrder,
+            &EffectModel::plain(b),
+            &current,
+            100,
+            None,
+        ) {
+            EffectParams::LinearOrder { added, value, .. } => (added, value),
+            e => panic!("{e:?}"),
+        };
+        assert_eq!(named(more_a), ("a3".to_string(), 0.125));
+        assert_eq!(named(more_b), ("b1".to_string(), -0.25));
+    }
+}

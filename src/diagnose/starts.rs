@@ -524,6 +524,20 @@ mod tests {
     /// slip fractions x 2 gaps in series and 3 plays x 3 offsets x 3 fractions in contact. The first series
     /// start keeps the model's gaps (their mean 0.75 plus-minus their half difference 0.25) with m2 = 1 and
     /// slip levels at the 99% / 1% quantiles of y; the templates slip at the extremes of y.
+    /// The series grid's third and fourth gap offsets are +spread and -spread, spread = (q99 - q01) / 8 =
+    /// (9.8 + 9.8) / 8 = 2.45 for y = 2 u: per offset 4 fractions x 2 gaps = 8 starts, so the first start of
+    /// each is number 16 (c1 - c2 = -2 spread = -4.9) and number 24 (+4.9).
+    #[test]
+    fn friction_offsets_go_both_ways() {
+        let u: Vec<f64> = (0..101).map(|k| f64::from(k) / 10.0 - 5.0).collect();
+        let y: Vec<f64> = u.iter().map(|v| 2.0 * v).collect();
+        let p = plan(EffectId::Friction, &context(&paper(), &u, &y, &y)).unwrap();
+        let series = &p.alternatives[0].starts;
+        let diff = |i: usize| series[i].base.c1 - series[i].base.c2;
+        assert!((diff(16) + 4.9).abs() < 1e-12, "{}", diff(16));
+        assert!((diff(24) - 4.9).abs() < 1e-12, "{}", diff(24));
+    }
+
     #[test]
     fn friction_grid_by_hand() {
         let m = paper();
