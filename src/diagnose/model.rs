@@ -134,25 +134,36 @@ impl BaseModel {
     /// Typical magnitudes of the parameters for finite differences and perturbations, from the data scale
     /// (the gaps get the output's scale: m1 = 1 makes x and y the same units on the upper border).
     pub fn typical(&self, y_scale: f64) -> Vec<f64> {
-        let bmax = self.b.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-6);
-        let mut t = vec![0.5; self.na];
-        t.extend(std::iter::repeat_n(bmax, self.nb + 1));
+        let mut t = coefficient_scales(self.na, &self.b, 0.0);
         t.extend([1.0, 0.1 * y_scale, 0.1 * y_scale]);
         t
     }
 
     /// The linear block's coefficients padded to the plant's arrays.
     pub fn arx_arrays(&self) -> ([f64; MAX_ORDER], [f64; MAX_ORDER + 1]) {
-        let mut a = [0.0; MAX_ORDER];
-        let mut b = [0.0; MAX_ORDER + 1];
-        for (d, s) in a.iter_mut().zip(&self.a) {
-            *d = *s;
-        }
-        for (d, s) in b.iter_mut().zip(&self.b) {
-            *d = *s;
-        }
-        (a, b)
+        padded(&self.a, &self.b)
     }
+}
+
+/// Typical magnitudes of a linear block's coefficients `a` (`na` of them) and `b`: 0.5 for each a (poles
+/// anywhere in the unit circle), the largest |b| (at least `b_floor` and 1e-6) for each b.
+pub(crate) fn coefficient_scales(na: usize, b: &[f64], b_floor: f64) -> Vec<f64> {
+    let bmax = b
+        .iter()
+        .fold(b_floor.abs(), |m, v| m.max(v.abs()))
+        .max(1e-6);
+    let mut t = vec![0.5; na];
+    t.extend(std::iter::repeat_n(bmax, b.len()));
+    t
+}
+
+/// Coefficients `a`, `b` (at most the plant's orders) padded with zeros to the plant's arrays.
+fn padded(a: &[f64], b: &[f64]) -> ([f64; MAX_ORDER], [f64; MAX_ORDER + 1]) {
+    let mut pa = [0.0; MAX_ORDER];
+    let mut pb = [0.0; MAX_ORDER + 1];
+    pa.iter_mut().zip(a).for_each(|(d, s)| *d = *s);
+    pb.iter_mut().zip(b).for_each(|(d, s)| *d = *s);
+    (pa, pb)
 }
 
 /// One catalogue extension with its parameters. `ExtraDelay` and `LinearOrder` change the base model's
@@ -384,13 +395,8 @@ impl Extension {
                 })
             }
             Extension::DirectionDependent { a, b } => {
-                let mut d = DirectionDependent {
-                    a: [0.0; MAX_ORDER],
-                    b: [0.0; MAX_ORDER + 1],
-                };
-                d.a.iter_mut().zip(a).for_each(|(d, s)| *d = *s);
-                d.b.iter_mut().zip(b).for_each(|(d, s)| *d = *s);
-                e.direction_dependent = Some(d);
+                let (a, b) = padded(a, b);
+                e.direction_dependent = Some(DirectionDependent { a, b });
             }
             Extension::Friction {
                 f_plus,
@@ -976,6 +982,22 @@ pub(crate) mod tests {
         assert_eq!(inverted.rest_memory(1.0, false), -4.0);
     }
 
+    /// Coefficient magnitudes: 0.5 per a, the largest |b| per b (raised to the floor, never below 1e-6);
+    /// padding fills the plant's arrays with zeros after the given coefficients.
+    #[test]
+    fn coefficient_scales_and_padding_by_hand() {
+        assert_eq!(
+            coefficient_scales(2, &[0.3, -0.8], 0.0),
+            vec![0.5, 0.5, 0.8, 0.8]
+        );
+        assert_eq!(coefficient_scales(0, &[0.3], -2.0), vec![2.0]);
+        assert_eq!(coefficient_scales(1, &[0.0], 0.0), vec![0.5, 1e-6]);
+        let (a, b) = padded(&[0.1, 0.2], &[0.3]);
+        assert_eq!(a[..2], [0.1, 0.2]);
+        assert!(a[2..].iter().chain(&b[1..]).all(|v| *v == 0.0));
+        assert_eq!(b[0], 0.3);
+    }
+
     /// From rest at a constant input u0 the model stays at rest: x = gain u0 (gain 0.8 / (1 + 0.45 + 0.55) =
     /// 0.4), w at the rest memory above: u0 = 5 gives x = 2, y = 1.5; u0 = -7.5 gives x = -3, y = -3.
     #[test]
@@ -1059,6 +1081,18 @@ pub(crate) mod tests {
         );
         narrow = narrow.with(fr(0.5, 0.5, FrictionForm::Contact));
         assert!(!narrow.extensions_valid());
+        // The play is the sum c1 + c2: both negative is no play, one negative with a larger other is.
+        let contact = |c1: f64, c2: f64| {
+            EffectModel::plain(BaseModel {
+                c1,
+                c2,
+                ..paper_base()
+            })
+            .with(fr(0.5, 0.5, FrictionForm::Contact))
+            .extensions_valid()
+        };
+        assert!(!contact(-0.5, -0.6));
+        assert!(contact(-0.2, 0.6));
         // A model with an invalid extension is not simulated.
         assert!(
             with(q(-0.1))

@@ -16,7 +16,9 @@ use rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
 use super::fit::{LmOptions, covariance, levenberg_marquardt};
-use super::model::{BaseModel, EffectModel, Extension, Objective, Rest, Simulation, is_stable};
+use super::model::{
+    BaseModel, EffectModel, Extension, Objective, Rest, Simulation, coefficient_scales, is_stable,
+};
 use super::structure::Structure;
 use crate::identify::mrgia::{Mrgia, MrgiaConfig};
 use crate::stats::std_dev;
@@ -182,12 +184,7 @@ impl<'a> Problem<'a> {
             Extension::Periodic { .. } => vec![1.0 / self.n_fit as f64, 0.1 * ys, 0.1 * ys],
             Extension::ColouredNoise { phi } => vec![0.5; phi.len()],
             // The base model's magnitudes for its coefficients ([`BaseModel::typical`]).
-            Extension::DirectionDependent { a, b } => {
-                let bmax = b.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-6);
-                let mut t = vec![0.5; a.len()];
-                t.extend(std::iter::repeat_n(bmax, b.len()));
-                t
-            }
+            Extension::DirectionDependent { a, b } => coefficient_scales(a.len(), b, 0.0),
         }
     }
 
@@ -480,7 +477,7 @@ pub(crate) fn fit_linear(p: &Problem, s: Structure) -> Option<(BaseModel, f64)> 
             th[na + nb + 1],
         ))
     };
-    let gain = b.iter().sum::<f64>() / (1.0 + a.iter().sum::<f64>());
+    let gain = linear_base(s, &a, &b, offset).static_gain();
     let mut fir = vec![0.0; nb + 1];
     fir[0] = gain;
     let starts = vec![
@@ -488,16 +485,20 @@ pub(crate) fn fit_linear(p: &Problem, s: Structure) -> Option<(BaseModel, f64)> 
         pack(&vec![0.0; na], &fir, offset),
         pack(&vec![0.0; na], &vec![0.0; nb + 1], mean_y),
     ];
-    let bmax = b
-        .iter()
-        .fold(0.0f64, |m, v| m.max(v.abs()))
-        .max(gain.abs())
-        .max(1e-6);
-    let mut typ = vec![0.5; na];
-    typ.extend(std::iter::repeat_n(bmax, nb + 1));
+    let mut typ = coefficient_scales(na, &b, gain);
     typ.push(p.y_scale);
     let (th, cost) = p.fit_packed(&unpack, &starts, &typ, Objective::Simulation)?;
     Some((unpack(&th).base, cost))
+}
+
+/// Give a start whose memory zone is inverted or narrower than `min_gap` (half-width `(c1 + c2) / 2`) the
+/// half-width `min_gap`, keeping its offset `(c2 - c1) / 2`: such a start is not a backlash.
+fn open_play(m: &mut BaseModel, min_gap: f64) {
+    let (offset, gap) = ((m.c2 - m.c1) / 2.0, (m.c1 + m.c2) / 2.0);
+    if gap < min_gap {
+        m.c1 = min_gap - offset;
+        m.c2 = min_gap + offset;
+    }
 }
 
 /// Pull an unstable start's poles inside the unit circle: a_i -> a_i r^i (every root scaled by r = 0.9)
@@ -544,13 +545,7 @@ pub(crate) fn fit_plain(
     });
     for m in &mut starts {
         stabilize(&mut m.a);
-        // A start with an inverted memory zone is not a backlash: keep its offset, give it a small gap.
-        let (offset, gap) = ((m.c2 - m.c1) / 2.0, (m.c1 + m.c2) / 2.0);
-        if gap < 0.01 * p.y_scale {
-            let gap = 0.01 * p.y_scale;
-            m.c1 = gap - offset;
-            m.c2 = gap + offset;
-        }
+        open_play(m, 0.01 * p.y_scale);
     }
     // The linear model itself (no play) and with a small play opened around it.
     let (lin, lin_cost) = linear;

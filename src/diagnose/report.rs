@@ -16,7 +16,7 @@ use super::catalogue::EffectId;
 use super::decision::{DECISION_RULE, structure_penalty};
 use super::engine::{CrossValidation, Diagnosis};
 use super::model::Extension;
-use super::residual::{self, Z95};
+use super::residual;
 use crate::io::write_atomic;
 use crate::plant::Mode;
 use crate::report::plot::{Axes, Panel, PlotError, Series, grid_plot, line_plot};
@@ -161,7 +161,7 @@ pub fn write_report(
 
     // Correlation functions on the fit part.
     let lags = d.config.lags.min(nf / 5).max(1);
-    let band = Z95 / (nf as f64).sqrt();
+    let band = residual::white_band(nf);
     let lagx: Vec<f64> = (1..=lags).map(|l| l as f64).collect();
     let lag0: Vec<f64> = (0..=lags).map(|l| l as f64).collect();
     let bands = |x0: f64| {
@@ -380,24 +380,7 @@ fn evidence(
                 }
             }
             let c = d.effect().expect("chosen");
-            // Each fitted curve only over the x_hat its border's samples cover.
-            let curve = |coef: &[f64; 2], shift: f64, samples: &[(f64, f64)]| -> Vec<(f64, f64)> {
-                let (xmin, xmax) = samples
-                    .iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| {
-                        (a.min(*x), b.max(*x))
-                    });
-                if samples.is_empty() {
-                    return Vec::new();
-                }
-                (0..=100)
-                    .map(|i| {
-                        let x = xmin + (xmax - xmin) * i as f64 / 100.0;
-                        let s = x + shift;
-                        (x, s * s * (coef[0] + s * coef[1]))
-                    })
-                    .collect()
-            };
+            let curve = border_curve;
             line_plot(
                 &path,
                 "Evidence for curved-borders: residual against the linear block's output",
@@ -474,7 +457,7 @@ fn evidence(
         }
         (Some(EffectId::ColouredNoise), Some(Extension::ColouredNoise { phi })) => {
             let lags = d.config.lags.min(nf / 5).max(1);
-            let band = Z95 / (nf as f64).sqrt();
+            let band = residual::white_band(nf);
             let lagx: Vec<f64> = (1..=lags).map(|l| l as f64).collect();
             let acf0 = residual::autocorrelation(&e0[..nf], lags);
             let acf1 = residual::autocorrelation(&e1[..nf], lags);
@@ -524,7 +507,7 @@ fn evidence(
         }
         (Some(EffectId::ExtraDelay | EffectId::LinearOrder), _) => {
             let lags = d.config.lags.min(nf / 5).max(1);
-            let band = Z95 / (nf as f64).sqrt();
+            let band = residual::white_band(nf);
             let lag0: Vec<f64> = (0..=lags).map(|l| l as f64).collect();
             let cc0 = residual::cross_correlation(&e0[..nf], &input.u[..nf], lags);
             let cc1 = residual::cross_correlation(&e1[..nf], &input.u[..nf], lags);
@@ -976,6 +959,27 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
          (an input offset passes through the linear block and is absorbed the same way)."
     );
     s
+}
+
+/// A fitted border curvature `s^2 (coef[0] + coef[1] s)`, `s = x + shift`, at 101 evenly spaced x over the
+/// range the border's `samples` (x, residual) cover (nothing when there are none: a curve is never drawn
+/// where the data do not reach).
+fn border_curve(coef: &[f64; 2], shift: f64, samples: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    if samples.is_empty() {
+        return Vec::new();
+    }
+    let (xmin, xmax) = samples
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| {
+            (a.min(*x), b.max(*x))
+        });
+    (0..=100)
+        .map(|i| {
+            let x = xmin + (xmax - xmin) * i as f64 / 100.0;
+            let s = x + shift;
+            (x, s * s * (coef[0] + s * coef[1]))
+        })
+        .collect()
 }
 
 #[cfg(test)]

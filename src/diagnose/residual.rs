@@ -29,6 +29,12 @@ use crate::stats::mean;
 /// z for a two-sided 95% band.
 pub const Z95: f64 = 1.959_963_984_540_054;
 
+/// The 95% band `Z95 / sqrt(n)` of a white sequence's sample correlations over `n` samples (`n` of 0 counts
+/// as 1).
+pub fn white_band(n: usize) -> f64 {
+    Z95 / (n.max(1) as f64).sqrt()
+}
+
 fn centred(x: &[f64]) -> Vec<f64> {
     let m = mean(x);
     x.iter().map(|v| v - m).collect()
@@ -123,7 +129,7 @@ pub fn allowed_outside(count: usize) -> f64 {
 pub fn cross_correlation(e: &[f64], u: &[f64], lags: usize) -> CrossCorrelation {
     let (ec, uc) = (centred(e), centred(u));
     let r: Vec<f64> = (0..=lags).map(|l| corr_at(&ec, &uc, l)).collect();
-    let band = Z95 / (e.len().max(1) as f64).sqrt();
+    let band = white_band(e.len());
     let outside: Vec<usize> = (0..=lags).filter(|&l| r[l].abs() > band).collect();
     // Reject when more lags fall outside than chance allows, or when one lag is far outside (|r| > 2 band).
     let allowed = allowed_outside(lags + 1);
@@ -169,7 +175,7 @@ pub fn billings(e: &[f64], u: &[f64], lags: usize) -> Billings {
     let e2: Vec<f64> = centred(&e.iter().map(|v| v * v).collect::<Vec<_>>());
     // e(k+1) u(k+1) shifted: phi_{e(eu)}(l) = corr(e(k), e(k-1-l) u(k-1-l)).
     let eu: Vec<f64> = centred(&e.iter().zip(u).map(|(a, b)| a * b).collect::<Vec<_>>());
-    let band = Z95 / (n.max(1) as f64).sqrt();
+    let band = white_band(n);
     let f = |a: &[f64], b: &[f64], shift: usize| -> Vec<f64> {
         (0..=lags).map(|l| corr_at(a, b, l + shift)).collect()
     };
@@ -364,7 +370,7 @@ pub fn against_x(e: &[f64], x_hat: &[f64], modes: &[Mode]) -> Verdict {
     let x1: Vec<f64> = centred(&idx.iter().map(|&k| x_hat[k]).collect::<Vec<_>>());
     let x2: Vec<f64> = centred(&idx.iter().map(|&k| x_hat[k] * x_hat[k]).collect::<Vec<_>>());
     let x3: Vec<f64> = centred(&idx.iter().map(|&k| x_hat[k].powi(3)).collect::<Vec<_>>());
-    let band = Z95 / (idx.len().max(1) as f64).sqrt();
+    let band = white_band(idx.len());
     let r = [
         corr_at(&ee, &x1, 0),
         corr_at(&ee, &x2, 0),
@@ -760,6 +766,24 @@ mod tests {
         let y: Vec<f64> = white(3000, 9).iter().map(|v| v.clamp(-1.0, 1.0)).collect();
         assert!(clipping(&y).2.rejects);
         assert!(!clipping(&white(3000, 10)).2.rejects);
+    }
+
+    /// Clipped at the bottom only (at -2, away from 0): the fraction is the samples sitting at the minimum.
+    #[test]
+    fn clipping_counts_the_minimum() {
+        let mut y: Vec<f64> = (0..1000).map(|k| k as f64 * 0.001).collect();
+        y[..10].iter_mut().for_each(|v| *v = -2.0);
+        let (lo, hi, v) = clipping(&y);
+        assert_eq!((lo, hi), (-2.0, 0.999));
+        assert_eq!(v.statistic, 0.01);
+        assert!(v.rejects);
+    }
+
+    #[test]
+    fn white_band_by_hand() {
+        assert!((white_band(100) - 0.195_996_398_454_005_4).abs() < 1e-15);
+        assert_eq!(white_band(0), Z95);
+        assert_eq!(white_band(1), Z95);
     }
 
     #[test]

@@ -152,6 +152,12 @@ impl InitialState {
     }
 }
 
+/// Whether the error `from_first` is more than [`REST_MARGIN`] below `from_zero` (never with an infinite
+/// or NaN `from_first`).
+fn clearly_below(from_first: f64, from_zero: f64) -> bool {
+    from_first < (1.0 - REST_MARGIN) * from_zero
+}
+
 /// Choose the initial state on the fit part of `p`: every structure of `structures` gets its equation-error
 /// fit (with a constant) on the first [`SELECT_SAMPLES`] samples of the fit part, simulated free-run there
 /// from rest at 0 and from rest at the first input; the first input wins when the best error from there is
@@ -187,7 +193,7 @@ pub(crate) fn initial_state(p: &Problem, structures: &[Structure]) -> InitialSta
         .collect();
     let best = |i: usize| errors.iter().map(|e| e[i]).fold(f64::INFINITY, f64::min);
     let (from_zero, from_first) = (best(0), best(1));
-    if from_first < (1.0 - REST_MARGIN) * from_zero {
+    if clearly_below(from_first, from_zero) {
         InitialState {
             input: u0,
             chosen_by: "first-input",
@@ -350,6 +356,19 @@ fn decide(c: &[StructureCandidate]) -> (Structure, String) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The first input wins only when its error is more than 10% below the one from 0, whatever the errors'
+    /// scale.
+    #[test]
+    fn the_first_input_needs_a_tenth_less_error() {
+        assert!(clearly_below(5.0, 10.0));
+        assert!(clearly_below(8.9, 10.0));
+        assert!(!clearly_below(9.1, 10.0));
+        assert!(clearly_below(0.05, 0.1));
+        assert!(!clearly_below(0.095, 0.1));
+        assert!(!clearly_below(f64::INFINITY, f64::INFINITY));
+        assert!(!clearly_below(f64::NAN, 1.0));
+    }
 
     fn cand(na: usize, nb: usize, delay: usize, rmse: Option<f64>) -> StructureCandidate {
         StructureCandidate {

@@ -387,11 +387,16 @@ impl Plant {
 
     fn compute(&mut self, w_prev: f64) -> PlantOutput {
         let x = match (&self.linear, &self.effects) {
-            (Linear::Arx(arx), Some((e, _))) if e.direction_dependent.is_some() => {
-                let d = e
-                    .direction_dependent
-                    .as_ref()
-                    .expect("checked in the pattern");
+            (
+                Linear::Arx(arx),
+                Some((
+                    Effects {
+                        direction_dependent: Some(d),
+                        ..
+                    },
+                    _,
+                )),
+            ) => {
                 let p = &arx.params;
                 let fall = arx.peek_with(&d.a[..p.na], &d.b[..=p.nb]);
                 effects::DirectionDependent::choose(arx.last_output(), arx.peek(), fall)

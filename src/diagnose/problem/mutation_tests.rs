@@ -94,3 +94,44 @@ fn plain_fit_opens_a_small_play_on_both_borders_of_the_linear_model() {
     };
     assert_eq!(m.base, want);
 }
+
+/// A start whose memory zone is inverted (c1 + c2 < 0) or narrower than the minimum gets the minimum
+/// half-width and keeps its offset (c2 - c1) / 2; a start with enough play is left alone.
+#[test]
+fn open_play_keeps_the_offset() {
+    let mut m = BaseModel {
+        c1: 1.0,
+        c2: -3.0,
+        ..paper_base()
+    };
+    open_play(&mut m, 0.5);
+    assert_eq!((m.c1, m.c2), (2.5, -1.5));
+    let mut wide = BaseModel {
+        c1: 0.4,
+        c2: 0.7,
+        ..paper_base()
+    };
+    open_play(&mut wide, 0.5);
+    assert_eq!((wide.c1, wide.c2), (0.4, 0.7));
+}
+
+/// A restart that only ties the best cost does not replace the best model (ties keep the earlier start, so
+/// restarts never move a model they do not improve). With a zero input every model simulates 0, so every
+/// start and restart ties on a constant output: the fit with restarts is the fit without.
+#[test]
+fn restarts_that_tie_keep_the_first_model() {
+    let n = 150;
+    let u = vec![0.0; n];
+    let y = vec![1.0; n];
+    let p = Problem::new(&u, &y, n, LmOptions::default());
+    let s = Structure {
+        na: 2,
+        nb: 0,
+        delay: 1,
+    };
+    let lin = (paper_base(), f64::INFINITY);
+    let (without, c0) = fit_plain(&p, s, 0, 7, &lin).expect("the starts run");
+    let (with, c3) = fit_plain(&p, s, 3, 7, &lin).expect("the starts run");
+    assert_eq!(c0, c3);
+    assert_eq!(without, with);
+}

@@ -9,3 +9,22 @@ fn points_pair_every_sample_in_order() {
     let got = pts(&[0.5, 1.5, 2.5], &[-1.0, 4.0, 9.0]);
     assert_eq!(got, vec![(0.5, -1.0), (1.5, 4.0), (2.5, 9.0)]);
 }
+
+/// A border's fitted curve spans exactly the x its samples cover, in 100 equal steps, with the curvature's
+/// value at each x; no samples, no curve.
+#[test]
+fn border_curve_spans_the_samples() {
+    let samples = [(3.0, 0.1), (-1.0, 0.2), (1.0, -0.3)];
+    let got = border_curve(&[2.0, 0.5], 1.0, &samples);
+    assert_eq!(got.len(), 101);
+    assert_eq!(got[0].0, -1.0);
+    assert_eq!(got[50].0, 1.0);
+    assert_eq!(got[100].0, 3.0);
+    assert!(
+        got.windows(2)
+            .all(|w| (w[1].0 - w[0].0 - 0.04).abs() < 1e-12)
+    );
+    // At x = 1: s = 2, s^2 (2 + 0.5 s) = 4 * 3 = 12.
+    assert!((got[50].1 - 12.0).abs() < 1e-12);
+    assert!(border_curve(&[2.0, 0.5], 1.0, &[]).is_empty());
+}
