@@ -982,6 +982,36 @@ pub(crate) mod tests {
         assert_eq!(inverted.rest_memory(1.0, false), -4.0);
     }
 
+    /// The chatter check allows x to fall a little on the upper border while both gaps narrow: each sample
+    /// the border moves by up to |c1_rate| + |c2_rate|. Here x = u(k-1) rises onto the upper border, then
+    /// falls 0.002 per sample while c1 shrinks 0.005 per sample, so w still rises (mode up, x falling less
+    /// than the drift): a valid drifting backlash, simulated.
+    #[test]
+    fn narrowing_gaps_let_x_fall_on_the_upper_border() {
+        let base = BaseModel {
+            na: 0,
+            nb: 0,
+            delay: 1,
+            a: vec![],
+            b: vec![1.0],
+            m1: 1.0,
+            m2: 1.0,
+            c1: 0.5,
+            c2: 0.5,
+        };
+        let mut u: Vec<f64> = (0..30).map(|k| 0.1 * k as f64).collect();
+        u.extend((1..=40).map(|k| 2.9 - 0.002 * k as f64));
+        let m = EffectModel::plain(base).with(Extension::GapDrift {
+            c1_rate: -0.005,
+            c2_rate: -0.005,
+        });
+        let mut sim = Simulation::default();
+        assert!(m.simulate_into(&u, Rest::ZERO, u.len(), 1e9, &mut sim));
+        let last = sim.mode.len() - 1;
+        assert_eq!(sim.mode[last], Mode::Up);
+        assert!(sim.x[last] < sim.x[last - 1]);
+    }
+
     /// Coefficient magnitudes: 0.5 per a, the largest |b| per b (raised to the floor, never below 1e-6);
     /// padding fills the plant's arrays with zeros after the given coefficients.
     #[test]

@@ -533,4 +533,42 @@ mod tests {
         assert_eq!(named(more_a), ("a3".to_string(), 0.125));
         assert_eq!(named(more_b), ("b1".to_string(), -0.25));
     }
+
+    /// A periodic disturbance in the JSON: omega pi/10 rad/sample is a 20-sample period, 2.5 Hz at 0.02 s per
+    /// sample; a_sin 3, a_cos 4 make amplitude 5 and phase atan2(4, 3); no sample time, no frequency in Hz.
+    #[test]
+    fn periodic_parameters_in_every_unit() {
+        let omega = std::f64::consts::PI / 10.0;
+        let m = EffectModel::plain(paper_base()).with(Extension::Periodic {
+            omega,
+            a_sin: 3.0,
+            a_cos: 4.0,
+        });
+        let current = EffectModel::plain(paper_base());
+        let of = |ts| EffectParams::of(EffectId::PeriodicDisturbance, &m, &current, 100, ts);
+        match of(Some(0.02)) {
+            EffectParams::Periodic {
+                omega: w,
+                period_samples,
+                amplitude,
+                phase,
+                frequency_hz,
+                ..
+            } => {
+                assert_eq!(w, omega);
+                assert!((period_samples - 20.0).abs() < 1e-12);
+                assert!((amplitude - 5.0).abs() < 1e-12);
+                assert!((phase - 4.0f64.atan2(3.0)).abs() < 1e-12);
+                assert!((frequency_hz.unwrap() - 2.5).abs() < 1e-12);
+            }
+            e => panic!("{e:?}"),
+        }
+        assert!(matches!(
+            of(None),
+            EffectParams::Periodic {
+                frequency_hz: None,
+                ..
+            }
+        ));
+    }
 }

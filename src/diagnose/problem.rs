@@ -374,7 +374,7 @@ impl<'a> Problem<'a> {
             a: e.a.clone(),
             b: e.b.clone(),
             m1: 1.0,
-            m2: if e.m2 > 1e-3 { e.m2 } else { 1.0 },
+            m2: usable_slope(e.m2),
             c1: e.c1,
             c2: e.c2,
         })
@@ -489,6 +489,12 @@ pub(crate) fn fit_linear(p: &Problem, s: Structure) -> Option<(BaseModel, f64)> 
     typ.push(p.y_scale);
     let (th, cost) = p.fit_packed(&unpack, &starts, &typ, Objective::Simulation)?;
     Some((unpack(&th).base, cost))
+}
+
+/// The estimator's lower-border slope as a start: itself when above 1e-3, else 1 (a flat or reversed
+/// border is no backlash to start from).
+fn usable_slope(m2: f64) -> f64 {
+    if m2 > 1e-3 { m2 } else { 1.0 }
 }
 
 /// Give a start whose memory zone is inverted or narrower than `min_gap` (half-width `(c1 + c2) / 2`) the

@@ -319,15 +319,7 @@ fn evidence(
             let win = (n / 25).max(5);
             let running = |mode: Mode| -> Vec<(f64, f64)> {
                 let idx: Vec<usize> = (0..n).filter(|&k| sim.mode[k] == mode).collect();
-                idx.windows(win)
-                    .step_by((win / 4).max(1))
-                    .map(|w| {
-                        (
-                            t[w[w.len() / 2]],
-                            w.iter().map(|&k| e0[k]).sum::<f64>() / w.len() as f64,
-                        )
-                    })
-                    .collect()
+                running_means(t, e0, &idx, win)
             };
             let c = d.effect().expect("chosen");
             let m2 = c.model.base.m2;
@@ -959,6 +951,20 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
          (an input offset passes through the linear block and is absorbed the same way)."
     );
     s
+}
+
+/// Means of `e` over windows of `win` consecutive samples of `idx` (every `win / 4`-th window), each at the
+/// time `t` of its middle sample.
+fn running_means(t: &[f64], e: &[f64], idx: &[usize], win: usize) -> Vec<(f64, f64)> {
+    idx.windows(win)
+        .step_by((win / 4).max(1))
+        .map(|w| {
+            (
+                t[w[w.len() / 2]],
+                w.iter().map(|&k| e[k]).sum::<f64>() / w.len() as f64,
+            )
+        })
+        .collect()
 }
 
 /// A fitted border curvature `s^2 (coef[0] + coef[1] s)`, `s = x + shift`, at 101 evenly spaced x over the

@@ -71,6 +71,20 @@ pub struct Verdict {
     pub detail: String,
 }
 
+impl Verdict {
+    /// A verdict that rejects when `statistic` is strictly above `threshold` (equal does not reject; NaN never
+    /// does).
+    pub fn exceeds(name: &'static str, statistic: f64, threshold: f64, detail: String) -> Self {
+        Self {
+            name,
+            statistic,
+            threshold,
+            rejects: statistic > threshold,
+            detail,
+        }
+    }
+}
+
 /// Ljung-Box portmanteau test of whiteness: Q = N (N + 2) sum_{l=1..L} r_l^2 / (N - l), against the 95%
 /// quantile of chi-square with L degrees of freedom. An empty or constant residual is white (Q = 0).
 pub fn ljung_box(e: &[f64], lags: usize) -> Verdict {
@@ -87,16 +101,15 @@ pub fn ljung_box(e: &[f64], lags: usize) -> Verdict {
     let (imax, rmax) = r.iter().enumerate().fold((0, 0.0f64), |acc, (i, v)| {
         if v.abs() > acc.1.abs() { (i, *v) } else { acc }
     });
-    Verdict {
-        name: "ljung-box",
-        statistic: q,
+    Verdict::exceeds(
+        "ljung-box",
+        q,
         threshold,
-        rejects: q > threshold,
-        detail: format!(
+        format!(
             "Q = {q:.1} over {lags} lags (chi-square 95%: {threshold:.1}); largest autocorrelation {rmax:.3} at lag {}",
             imax + 1
         ),
-    }
+    )
 }
 
 /// The p-quantile of chi-square with `df` degrees of freedom.
@@ -198,13 +211,12 @@ pub fn billings(e: &[f64], u: &[f64], lags: usize) -> Billings {
         .join(", ");
     Billings {
         band,
-        verdict: Verdict {
-            name: "billings higher-order correlations",
-            statistic: hoc,
-            threshold: 2.0,
-            rejects: hoc > 2.0,
-            detail: format!("largest |phi| in bands: {detail}"),
-        },
+        verdict: Verdict::exceeds(
+            "billings higher-order correlations",
+            hoc,
+            2.0,
+            format!("largest |phi| in bands: {detail}"),
+        ),
         functions,
     }
 }
@@ -352,13 +364,12 @@ pub fn since_reversal(e: &[f64], x_hat: &[f64]) -> (Vec<GroupStats>, Verdict) {
         .fold(0.0, f64::max);
     (
         groups,
-        Verdict {
-            name: "residual by time since reversal",
-            statistic: worst,
-            threshold: 3.0,
-            rejects: worst > 3.0,
-            detail: format!("largest bin mean in standard errors: {worst:.1}"),
-        },
+        Verdict::exceeds(
+            "residual by time since reversal",
+            worst,
+            3.0,
+            format!("largest bin mean in standard errors: {worst:.1}"),
+        ),
     )
 }
 
@@ -377,19 +388,18 @@ pub fn against_x(e: &[f64], x_hat: &[f64], modes: &[Mode]) -> Verdict {
         corr_at(&ee, &x3, 0),
     ];
     let peak = r.iter().fold(0.0f64, |m, v| m.max(v.abs())) / band;
-    Verdict {
-        name: "residual against x_hat on the borders",
-        statistic: peak,
-        threshold: 3.0,
-        rejects: peak > 3.0,
-        detail: format!(
+    Verdict::exceeds(
+        "residual against x_hat on the borders",
+        peak,
+        3.0,
+        format!(
             "corr with x_hat {:.3}, x_hat^2 {:.3}, x_hat^3 {:.3} (band {band:.3}, {} engaged samples)",
             r[0],
             r[1],
             r[2],
             idx.len()
         ),
-    }
+    )
 }
 
 /// Drift over the record: the largest excursion of the CUSUM of the residual (standardised: under a
@@ -430,13 +440,7 @@ pub fn drift(e: &[f64], modes: &[Mode]) -> Verdict {
         ));
         worst = worst.max(stat);
     }
-    Verdict {
-        name: "drift (CUSUM by mode)",
-        statistic: worst,
-        threshold: 1.358,
-        rejects: worst > 1.358,
-        detail: detail.join("; "),
-    }
+    Verdict::exceeds("drift (CUSUM by mode)", worst, 1.358, detail.join("; "))
 }
 
 /// Periodogram of the residual (FFT, zero-padded to twice the next power of two so that a sinusoid between
@@ -461,16 +465,15 @@ pub fn spectrum_peak(e: &[f64]) -> (f64, Verdict) {
     let stat = pmax / median;
     (
         w,
-        Verdict {
-            name: "residual spectrum peak",
-            statistic: stat,
+        Verdict::exceeds(
+            "residual spectrum peak",
+            stat,
             threshold,
-            rejects: stat > threshold,
-            detail: format!(
+            format!(
                 "peak {stat:.1} x median at {w:.4} rad/sample (period {:.1} samples)",
                 2.0 * std::f64::consts::PI / w
             ),
-        },
+        ),
     )
 }
 
@@ -652,17 +655,16 @@ pub fn extreme_increments(e: &[f64], y_hat: &[f64]) -> Verdict {
             ));
         }
     }
-    Verdict {
-        name: "incremental gain at the output extremes",
-        statistic: worst,
-        threshold: 4.0,
-        rejects: worst > 4.0,
-        detail: if detail.is_empty() {
+    Verdict::exceeds(
+        "incremental gain at the output extremes",
+        worst,
+        4.0,
+        if detail.is_empty() {
             "too few samples at the extremes".into()
         } else {
             detail.join("; ")
         },
-    }
+    )
 }
 
 #[cfg(test)]
@@ -766,6 +768,16 @@ mod tests {
         let y: Vec<f64> = white(3000, 9).iter().map(|v| v.clamp(-1.0, 1.0)).collect();
         assert!(clipping(&y).2.rejects);
         assert!(!clipping(&white(3000, 10)).2.rejects);
+    }
+
+    /// Only a statistic strictly above its threshold rejects.
+    #[test]
+    fn a_verdict_rejects_strictly_above_its_threshold() {
+        let v = |s: f64| Verdict::exceeds("t", s, 1.358, String::new()).rejects;
+        assert!(!v(1.358));
+        assert!(v(1.358_000_001));
+        assert!(!v(1.0));
+        assert!(!v(f64::NAN));
     }
 
     /// Clipped at the bottom only (at -2, away from 0): the fraction is the samples sitting at the minimum.

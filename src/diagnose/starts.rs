@@ -182,6 +182,20 @@ fn saturation(cx: &StartContext) -> Option<Plan> {
 }
 
 /// The residual's least-squares sinusoid at the spectrum's peak.
+/// The solution of the 2x2 normal equations `[[g0, g1], [g1, g2]] x = r` by Cramer's rule; (0, 0) when the
+/// determinant's magnitude is at most 1e-12 (a sinusoid at frequency 0 or pi, or too few samples: no start).
+fn solve_symmetric_2x2(g: [f64; 3], r: [f64; 2]) -> (f64, f64) {
+    let det = g[0] * g[2] - g[1] * g[1];
+    if det.abs() > 1e-12 {
+        (
+            (r[0] * g[2] - r[1] * g[1]) / det,
+            (r[1] * g[0] - r[0] * g[1]) / det,
+        )
+    } else {
+        (0.0, 0.0)
+    }
+}
+
 fn periodic(cx: &StartContext) -> Option<Plan> {
     let w = cx.omega;
     let (mut ss, mut cc, mut sc, mut se, mut ce) = (0.0, 0.0, 0.0, 0.0, 0.0);
@@ -193,12 +207,7 @@ fn periodic(cx: &StartContext) -> Option<Plan> {
         se += s * v;
         ce += c * v;
     }
-    let det = ss * cc - sc * sc;
-    let (a_sin, a_cos) = if det.abs() > 1e-12 {
-        ((se * cc - ce * sc) / det, (ce * ss - se * sc) / det)
-    } else {
-        (0.0, 0.0)
-    };
+    let (a_sin, a_cos) = solve_symmetric_2x2([ss, sc, cc], [se, ce]);
     let m = with_ext(
         cx,
         Extension::Periodic {
@@ -365,6 +374,26 @@ fn friction(cx: &StartContext) -> Option<Plan> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Cramer's rule on a symmetric 2x2 system, and no solution at or below the singularity bound.
+    #[test]
+    fn symmetric_2x2_by_hand() {
+        // [[2, 1], [1, 3]] x = [3, 5]: x = (4/5, 7/5).
+        let (x0, x1) = solve_symmetric_2x2([2.0, 1.0, 3.0], [3.0, 5.0]);
+        assert!(
+            (x0 - 0.8).abs() < 1e-15 && (x1 - 1.4).abs() < 1e-15,
+            "{x0} {x1}"
+        );
+        // Determinant exactly 1e-12: singular; just above it: solved.
+        assert_eq!(
+            solve_symmetric_2x2([1.0, 0.0, 1e-12], [1.0, 1.0]),
+            (0.0, 0.0)
+        );
+        let (y0, y1) = solve_symmetric_2x2([1.0, 0.0, 2e-12], [1.0, 1.0]);
+        assert_eq!(y0, 1.0);
+        assert!((y1 - 5e11).abs() < 1.0);
+        assert_eq!(solve_symmetric_2x2([0.0, 0.0, 5.0], [1.0, 1.0]), (0.0, 0.0));
+    }
     use crate::diagnose::model::Rest;
 
     #[test]

@@ -135,3 +135,13 @@ fn restarts_that_tie_keep_the_first_model() {
     assert_eq!(c0, c3);
     assert_eq!(without, with);
 }
+
+/// MRGIA's slope is used as a start above 1e-3 only; at or below it (or NaN) the start's slope is 1.
+#[test]
+fn mrgia_slopes_at_most_a_thousandth_start_at_one() {
+    assert_eq!(usable_slope(0.5), 0.5);
+    assert_eq!(usable_slope(0.0011), 0.0011);
+    assert_eq!(usable_slope(1e-3), 1.0);
+    assert_eq!(usable_slope(-2.0), 1.0);
+    assert_eq!(usable_slope(f64::NAN), 1.0);
+}

@@ -28,3 +28,14 @@ fn border_curve_spans_the_samples() {
     assert!((got[50].1 - 12.0).abs() < 1e-12);
     assert!(border_curve(&[2.0, 0.5], 1.0, &[]).is_empty());
 }
+
+/// Running means over windows of the given samples, at the middle sample's time: windows of 8 step by 2.
+#[test]
+fn running_means_by_hand() {
+    let t: Vec<f64> = (0..20).map(|k| 0.5 * k as f64).collect();
+    let e: Vec<f64> = (0..20).map(|k| k as f64).collect();
+    let idx: Vec<usize> = (0..20).filter(|k| k % 2 == 0).collect();
+    let got = running_means(&t, &e, &idx, 8);
+    // Windows of idx: [0, 2, .., 14] (mean 7, middle sample 8 at t 4), then [4, .., 18] (mean 11, t 6).
+    assert_eq!(got, vec![(4.0, 7.0), (6.0, 11.0)]);
+}
