@@ -610,6 +610,14 @@ fn linear_fit(p: &Problem, linear: &(BaseModel, f64)) -> LinearFit {
     }
 }
 
+/// The standard error of the sum of parameters `j` and `k` from their covariance matrix:
+/// `sqrt(var_j + var_k + 2 cov_jk)` (0 where rounding makes the variance negative).
+fn sum_std_error(cov: &nalgebra::DMatrix<f64>, j: usize, k: usize) -> f64 {
+    (cov[(j, j)] + cov[(k, k)] + 2.0 * cov[(j, k)])
+        .max(0.0)
+        .sqrt()
+}
+
 /// The plain model's play with its standard error, and the verdict against the linear model.
 fn backlash_support(
     p: &Problem,
@@ -621,11 +629,7 @@ fn backlash_support(
     let i = base.na + base.nb + 1;
     let se = |j: usize| cov.as_ref().map(|c| c[(j, j)].max(0.0).sqrt());
     let play = base.c1 + base.c2;
-    let play_se = cov.as_ref().map(|c| {
-        (c[(i + 1, i + 1)] + c[(i + 2, i + 2)] + 2.0 * c[(i + 1, i + 2)])
-            .max(0.0)
-            .sqrt()
-    });
+    let play_se = cov.as_ref().map(|c| sum_std_error(c, i + 1, i + 2));
     let significant = play_se.is_some_and(|s| play > residual::Z95 * s);
     let better = base_heldout < linear.heldout_rmse;
     let play_text = match play_se {

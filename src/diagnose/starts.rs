@@ -565,6 +565,13 @@ mod tests {
         let diff = |i: usize| series[i].base.c1 - series[i].base.c2;
         assert!((diff(16) + 4.9).abs() < 1e-12, "{}", diff(16));
         assert!((diff(24) - 4.9).abs() < 1e-12, "{}", diff(24));
+        // Contact: per play three offsets (0, +g/2, -g/2) of three fractions each; the first play g is 2% of
+        // the stroke of x, 0.02 * 0.4 * 9.8: starts 3 and 6 have c1 - c2 = -g and +g.
+        let contact = &p.alternatives[1].starts;
+        let g = 0.02 * 0.4 * 9.8;
+        let cdiff = |i: usize| contact[i].base.c1 - contact[i].base.c2;
+        assert!((cdiff(3) + g).abs() < 1e-12, "{}", cdiff(3));
+        assert!((cdiff(6) - g).abs() < 1e-12, "{}", cdiff(6));
     }
 
     #[test]

@@ -437,6 +437,36 @@ mod tests {
     }
 
     #[test]
+    fn the_chosen_candidate_is_flagged_and_fitted_ones_come_first() {
+        // y = 0.8 u(k-2) after a first-order block: a record with structure to find.
+        let n = 400;
+        let u: Vec<f64> = (0..n)
+            .map(|k| (k as f64 * 0.21).sin() + 0.5 * (k as f64 * 0.047).cos())
+            .collect();
+        let mut y = vec![0.0; n];
+        for k in 2..n {
+            y[k] = 0.5 * y[k - 1] + 0.8 * u[k - 2];
+        }
+        let c = select_for_record(&u, &y, 3);
+        let flagged: Vec<Structure> = c
+            .candidates
+            .iter()
+            .filter(|x| x.chosen)
+            .map(|x| x.structure)
+            .collect();
+        assert_eq!(flagged, vec![c.chosen]);
+        // Fully fitted candidates first, by their error.
+        let errors: Vec<f64> = c.candidates.iter().map_while(|x| x.model_rmse).collect();
+        assert!(!errors.is_empty());
+        assert!(errors.windows(2).all(|w| w[0] <= w[1]), "{errors:?}");
+        assert!(
+            c.candidates[errors.len()..]
+                .iter()
+                .all(|x| x.model_rmse.is_none())
+        );
+    }
+
+    #[test]
     fn the_grid_respects_the_bounds() {
         let g = grid(10, 7000, 10_000);
         assert_eq!(g.len(), 250);
