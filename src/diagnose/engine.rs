@@ -1017,14 +1017,5 @@ impl Context<'_, '_> {
     }
 }
 
-/// Modes as a small integer (for plotting): up 1, down -1, held 0.
-pub fn mode_value(m: crate::plant::Mode) -> f64 {
-    match m {
-        crate::plant::Mode::Up => 1.0,
-        crate::plant::Mode::Down => -1.0,
-        crate::plant::Mode::Held => 0.0,
-    }
-}
-
 #[cfg(test)]
 mod mutation_tests;

@@ -138,11 +138,6 @@ impl BaseModel {
         t.extend([1.0, 0.1 * y_scale, 0.1 * y_scale]);
         t
     }
-
-    /// The linear block's coefficients padded to the plant's arrays.
-    pub fn arx_arrays(&self) -> ([f64; MAX_ORDER], [f64; MAX_ORDER + 1]) {
-        padded(&self.a, &self.b)
-    }
 }
 
 /// Typical magnitudes of a linear block's coefficients `a` (`na` of them) and `b`: 0.5 for each a (poles

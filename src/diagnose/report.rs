@@ -324,14 +324,8 @@ fn evidence(
             let c = d.effect().expect("chosen");
             let m2 = c.model.base.m2;
             // Up border y = x - c1(k): a growing c1 lowers it by c1_rate k relative to the declared fit.
-            let up_line: Vec<(f64, f64)> = (0..n)
-                .step_by((n / 200).max(1))
-                .map(|k| (t[k], -c1_rate * k as f64))
-                .collect();
-            let dn_line: Vec<(f64, f64)> = (0..n)
-                .step_by((n / 200).max(1))
-                .map(|k| (t[k], m2 * c2_rate * k as f64))
-                .collect();
+            let up_line = drift_line(t, -c1_rate);
+            let dn_line = drift_line(t, m2 * c2_rate);
             // Centre the fitted lines on the running means (the declared fit absorbed the average gap).
             let centre = |line: Vec<(f64, f64)>, data: &[(f64, f64)]| -> Vec<(f64, f64)> {
                 let ml = line.iter().map(|p| p.1).sum::<f64>() / line.len().max(1) as f64;
@@ -951,6 +945,14 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
          (an input offset passes through the linear block and is absorbed the same way)."
     );
     s
+}
+
+/// The line `slope k` (k the sample index) at about 200 of the times `t`.
+fn drift_line(t: &[f64], slope: f64) -> Vec<(f64, f64)> {
+    (0..t.len())
+        .step_by((t.len() / 200).max(1))
+        .map(|k| (t[k], slope * k as f64))
+        .collect()
 }
 
 /// Means of `e` over windows of `win` consecutive samples of `idx` (every `win / 4`-th window), each at the

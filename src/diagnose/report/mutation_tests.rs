@@ -39,3 +39,18 @@ fn running_means_by_hand() {
     // Windows of idx: [0, 2, .., 14] (mean 7, middle sample 8 at t 4), then [4, .., 18] (mean 11, t 6).
     assert_eq!(got, vec![(4.0, 7.0), (6.0, 11.0)]);
 }
+
+/// The fitted drift as a line over time: slope times the sample index, at every (n / 200)-th sample.
+#[test]
+fn drift_line_by_hand() {
+    let t: Vec<f64> = (0..1000).map(|k| 0.01 * k as f64).collect();
+    let line = drift_line(&t, -0.5);
+    assert_eq!(line.len(), 200);
+    assert_eq!(line[0], (0.0, 0.0));
+    assert_eq!(line[1], (0.05, -2.5));
+    assert_eq!(line[199], (t[995], -497.5));
+    assert_eq!(
+        drift_line(&t[..3], 2.0),
+        vec![(0.0, 0.0), (0.01, 2.0), (0.02, 4.0)]
+    );
+}
