@@ -466,7 +466,7 @@ pub fn diagnose_with_progress(
             let start = EffectModel::plain(c.model.base.clone());
             if let Some((polished, cost)) =
                 problem.fit(&start, std::slice::from_ref(&start), Objective::Simulation)
-                && cost < base.1 * (1.0 - 1e-6)
+                && clearly_below(cost, base.1)
             {
                 base = (polished, cost);
                 fitted = std::mem::take(&mut d.candidates);
@@ -817,10 +817,7 @@ fn find(p: &Problem, cfg: &DiagnoseConfig, cur: Current) -> Found {
     let results: Vec<Result<Option<Candidate>, EffectId>> = pointed
         .into_par_iter()
         .map(|(id, by)| {
-            let again = cur
-                .fitted
-                .iter()
-                .find(|c| c.id == id && c.error_kind == SIMULATION);
+            let again = judged_as_is(cur.fitted, id);
             let result = match again {
                 Some(c) => {
                     Ok(ctx.judge(id, by, (c.model.clone(), c.fit_cost, Objective::Simulation)))
@@ -1015,6 +1012,21 @@ impl Context<'_, '_> {
             sim,
         })
     }
+}
+
+/// Whether a cost is lower than `reference` by more than one part in a million (a refit that only matches
+/// the reference up to the optimiser's tolerance is no better).
+fn clearly_below(cost: f64, reference: f64) -> bool {
+    cost < reference * (1.0 - 1e-6)
+}
+
+/// The earlier fit of effect `id` that is judged again as it is when the plain model changed: its simulation
+/// fit (a fit of its own structure, whatever the plain model is); a noise model's prediction fit depends on
+/// the plain model's residual and is fitted again.
+fn judged_as_is(fitted: &[Candidate], id: EffectId) -> Option<&Candidate> {
+    fitted
+        .iter()
+        .find(|c| c.id == id && c.error_kind == SIMULATION)
 }
 
 #[cfg(test)]

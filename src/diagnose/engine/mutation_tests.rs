@@ -164,3 +164,50 @@ fn sum_std_error_by_hand() {
     let negative = nalgebra::DMatrix::from_row_slice(2, 2, &[1.0, -2.0, -2.0, 1.0]);
     assert_eq!(sum_std_error(&negative, 0, 1), 0.0);
 }
+
+/// A refit of the plain model replaces it only when more than one part in a million lower.
+#[test]
+fn a_refit_must_be_clearly_lower() {
+    assert!(clearly_below(0.99, 1.0));
+    assert!(clearly_below(99.9998, 100.0));
+    assert!(!clearly_below(99.9999, 100.0));
+    assert!(!clearly_below(1.0, 1.0));
+    assert!(!clearly_below(1.1, 1.0));
+}
+
+/// Only an earlier simulation fit of the same effect is judged again as it is; a noise model's prediction
+/// fit of the same effect, or another effect's, is not.
+#[test]
+fn only_simulation_fits_of_the_same_effect_are_judged_again() {
+    let candidate = |id: EffectId, error_kind: &'static str, fit_cost: f64| Candidate {
+        id,
+        pointed_by: vec![],
+        model: EffectModel::plain(paper_base()),
+        k: 6,
+        fit_rmse: 0.0,
+        fit_cost,
+        bic: 0.0,
+        delta_bic: 0.0,
+        heldout_rmse: 0.0,
+        heldout_z: 0.0,
+        error_kind,
+        one_step: None,
+        supported: false,
+        reason: String::new(),
+        output: vec![],
+        sim: Default::default(),
+    };
+    let fitted = [
+        candidate(EffectId::ColouredNoise, "one-step prediction", 1.0),
+        candidate(EffectId::GapDrift, SIMULATION, 2.0),
+        candidate(EffectId::ColouredNoise, SIMULATION, 3.0),
+    ];
+    let found = |id| judged_as_is(&fitted, id).map(|c| c.fit_cost);
+    assert_eq!(found(EffectId::ColouredNoise), Some(3.0));
+    assert_eq!(found(EffectId::GapDrift), Some(2.0));
+    assert_eq!(found(EffectId::Saturation), None);
+    assert_eq!(
+        judged_as_is(&fitted[..1], EffectId::ColouredNoise).map(|c| c.fit_cost),
+        None
+    );
+}
