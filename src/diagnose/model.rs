@@ -1069,6 +1069,30 @@ pub(crate) mod tests {
         assert_eq!(b.unpack(&b.pack()), b);
     }
 
+    /// The model's output with a quantizer is the expected reading of the sensor's value, rounded once: a
+    /// saturation that never clips (which sends the output through the sensor) changes nothing, also with
+    /// noise before the rounding (sigma > 0, readings off the grid).
+    #[test]
+    fn the_sensor_does_not_round_before_the_expected_reading() {
+        let u = input(80);
+        let q = Extension::Quantization {
+            step: 0.5,
+            offset: 0.1,
+            sigma: 0.2,
+        };
+        let wide = Extension::Saturation { lo: -1e9, hi: 1e9 };
+        let plain = EffectModel::plain(paper_base()).with(q.clone());
+        let sensed = EffectModel::plain(paper_base()).with(wide).with(q);
+        let a = plain.simulate(&u, Rest::ZERO, 80, 1e9).unwrap().y;
+        let b = sensed.simulate(&u, Rest::ZERO, 80, 1e9).unwrap().y;
+        assert_eq!(a, b);
+        // Readings off the grid: the expectation over the noise, not a rounded value.
+        assert!(
+            a.iter()
+                .any(|v| ((v - 0.1) / 0.5 - ((v - 0.1) / 0.5).round()).abs() > 1e-3)
+        );
+    }
+
     /// The extensions' own validity: a positive finite rounding step, saturation levels in order, a
     /// non-empty slip range, and a play of non-negative width for the contact form.
     #[test]

@@ -139,15 +139,20 @@ pub fn allowed_outside(count: usize) -> f64 {
     expected + Z95 * (expected * 0.95).sqrt() + 1.0
 }
 
+/// Correlations `r` against a white sequence's band: how many fall outside it, the largest |r|, and whether
+/// to reject: more outside than chance allows ([`allowed_outside`]), or one far outside (|r| > 2 band).
+fn outside_band(r: &[f64], band: f64) -> (Vec<usize>, f64, bool) {
+    let outside: Vec<usize> = (0..r.len()).filter(|&l| r[l].abs() > band).collect();
+    let peak = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let rejects = outside.len() as f64 > allowed_outside(r.len()) || peak > 2.0 * band;
+    (outside, peak, rejects)
+}
+
 pub fn cross_correlation(e: &[f64], u: &[f64], lags: usize) -> CrossCorrelation {
     let (ec, uc) = (centred(e), centred(u));
     let r: Vec<f64> = (0..=lags).map(|l| corr_at(&ec, &uc, l)).collect();
     let band = white_band(e.len());
-    let outside: Vec<usize> = (0..=lags).filter(|&l| r[l].abs() > band).collect();
-    // Reject when more lags fall outside than chance allows, or when one lag is far outside (|r| > 2 band).
-    let allowed = allowed_outside(lags + 1);
-    let peak = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let rejects = outside.len() as f64 > allowed || peak > 2.0 * band;
+    let (outside, peak, rejects) = outside_band(&r, band);
     let statistic = peak / band;
     CrossCorrelation {
         lags: (0..=lags).collect(),
@@ -768,6 +773,22 @@ mod tests {
         let y: Vec<f64> = white(3000, 9).iter().map(|v| v.clamp(-1.0, 1.0)).collect();
         assert!(clipping(&y).2.rejects);
         assert!(!clipping(&white(3000, 10)).2.rejects);
+    }
+
+    /// Many lags just outside the band reject, as does one far outside; a few just outside do not. With 21
+    /// lags chance allows 0.05 * 21 + 1.96 sqrt(0.05 * 21 * 0.95) + 1 = 4.0075 outside.
+    #[test]
+    fn outside_band_by_hand() {
+        assert!((allowed_outside(21) - 4.0075).abs() < 1e-4);
+        let mut r = vec![0.0; 21];
+        r[..5].iter_mut().for_each(|v| *v = -1.5);
+        assert_eq!(outside_band(&r, 1.0), (vec![0, 1, 2, 3, 4], 1.5, true));
+        r[0] = 0.5;
+        assert_eq!(outside_band(&r, 1.0), (vec![1, 2, 3, 4], 1.5, false));
+        r[7] = 2.01;
+        assert_eq!(outside_band(&r, 1.0), (vec![1, 2, 3, 4, 7], 2.01, true));
+        assert_eq!(outside_band(&[1.0, 2.0], 1.0), (vec![1], 2.0, false));
+        assert_eq!(outside_band(&[1.0, 2.01], 1.0), (vec![1], 2.01, true));
     }
 
     /// Only a statistic strictly above its threshold rejects.
