@@ -374,6 +374,21 @@ mod tests {
         assert!((fit.theta[2] - 0.5).abs() < 1e-6);
     }
 
+    /// As many residuals as free parameters (no noise variance to judge a step by): the statistical stop
+    /// does not apply and the fit solves the equations. Here x^2 = 4, x + y = 5 from (1, 1).
+    #[test]
+    fn an_exactly_determined_problem_is_solved() {
+        let f = |th: &[f64], out: &mut Vec<f64>| {
+            out.extend([th[0] * th[0] - 4.0, th[0] + th[1] - 5.0]);
+            true
+        };
+        let opts = LmOptions::default();
+        assert!(opts.stat_tol > 0.0);
+        let fit = levenberg_marquardt(&f, &[1.0, 1.0], &[1.0; 2], &[], &opts).unwrap();
+        assert!((fit.theta[0] - 2.0).abs() < 1e-6, "{:?}", fit.theta);
+        assert!((fit.theta[1] - 3.0).abs() < 1e-6, "{:?}", fit.theta);
+    }
+
     #[test]
     fn fixed_parameters_stay_and_invalid_region_is_avoided() {
         let x: Vec<f64> = (0..30).map(|k| k as f64 / 10.0).collect();

@@ -182,3 +182,19 @@ fn restarts_never_raise_the_cost_on(n: usize) {
         assert!(c4 <= c0, "{n} samples, seed {seed}: {c4} > {c0}");
     }
 }
+
+/// Stabilising scales every root by 0.9 per pass (a_i by 0.9^i) until the block is stable: a pole at 1.1
+/// takes one pass (a1 -1.1 -> -0.99), poles at +-1.1 too (a2 -1.21 -> -0.9801); a stable block is unchanged.
+#[test]
+fn stabilize_scales_the_roots_by_a_tenth() {
+    let mut first = [-1.1];
+    stabilize(&mut first);
+    assert!((first[0] + 0.99).abs() < 1e-15, "{first:?}");
+    let mut second = [0.0, -1.21];
+    stabilize(&mut second);
+    assert_eq!(second[0], 0.0);
+    assert!((second[1] + 0.9801).abs() < 1e-15, "{second:?}");
+    let mut stable = [0.45, 0.55];
+    stabilize(&mut stable);
+    assert_eq!(stable, [0.45, 0.55]);
+}
