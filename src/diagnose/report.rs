@@ -323,15 +323,8 @@ fn evidence(
             };
             let c = d.effect().expect("chosen");
             let m2 = c.model.base.m2;
-            // Up border y = x - c1(k): a growing c1 lowers it by c1_rate k relative to the declared fit.
-            let up_line = drift_line(t, -c1_rate);
-            let dn_line = drift_line(t, m2 * c2_rate);
-            // Centre the fitted lines on the running means (the declared fit absorbed the average gap).
-            let centre = |line: Vec<(f64, f64)>, data: &[(f64, f64)]| -> Vec<(f64, f64)> {
-                let ml = line.iter().map(|p| p.1).sum::<f64>() / line.len().max(1) as f64;
-                let md = data.iter().map(|p| p.1).sum::<f64>() / data.len().max(1) as f64;
-                line.into_iter().map(|(a, b)| (a, b - ml + md)).collect()
-            };
+            let [up_line, dn_line] = border_drift_lines(t, *c1_rate, *c2_rate, m2);
+            let centre = centred_on;
             let (ru, rd) = (running(Mode::Up), running(Mode::Down));
             let (lu, ld) = (centre(up_line, &ru), centre(dn_line, &rd));
             line_plot(
@@ -945,6 +938,21 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
          (an input offset passes through the linear block and is absorbed the same way)."
     );
     s
+}
+
+/// The change of each border a fitted gap drift predicts against the declared fit: the upper border
+/// `y = m1 (x - c1(k))` (m1 = 1) falls by `c1_rate k`, the lower `y = m2 (x + c2(k))` rises by
+/// `m2 c2_rate k`.
+fn border_drift_lines(t: &[f64], c1_rate: f64, c2_rate: f64, m2: f64) -> [Vec<(f64, f64)>; 2] {
+    [drift_line(t, -c1_rate), drift_line(t, m2 * c2_rate)]
+}
+
+/// `line` moved up or down so that its mean equals the mean of `data`'s y (the declared fit absorbed the
+/// average gap, so only the change over time is the drift's).
+fn centred_on(line: Vec<(f64, f64)>, data: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    let ml = line.iter().map(|p| p.1).sum::<f64>() / line.len().max(1) as f64;
+    let md = data.iter().map(|p| p.1).sum::<f64>() / data.len().max(1) as f64;
+    line.into_iter().map(|(a, b)| (a, b - ml + md)).collect()
 }
 
 /// The line `slope k` (k the sample index) at about 200 of the times `t`.

@@ -54,3 +54,19 @@ fn drift_line_by_hand() {
         vec![(0.0, 0.0), (0.01, 2.0), (0.02, 4.0)]
     );
 }
+
+/// The fitted drift's lines: the upper border falls by c1_rate per sample, the lower rises by m2 c2_rate;
+/// centring moves a line to the data's mean level without changing its slope.
+#[test]
+fn border_drift_lines_and_centring_by_hand() {
+    let t: Vec<f64> = (0..4).map(f64::from).collect();
+    let [up, dn] = border_drift_lines(&t, 0.5, 0.25, 3.0);
+    assert_eq!(up, vec![(0.0, 0.0), (1.0, -0.5), (2.0, -1.0), (3.0, -1.5)]);
+    assert_eq!(dn, vec![(0.0, 0.0), (1.0, 0.75), (2.0, 1.5), (3.0, 2.25)]);
+    // Line mean -0.75, data mean 10: every point up by 10.75.
+    let c = centred_on(up, &[(0.0, 9.0), (5.0, 11.0)]);
+    assert_eq!(
+        c,
+        vec![(0.0, 10.75), (1.0, 10.25), (2.0, 9.75), (3.0, 9.25)]
+    );
+}
