@@ -34,6 +34,12 @@ pub fn rms_diff(a: &[f64], b: &[f64]) -> f64 {
     rms(a.iter().zip(b).map(|(x, y)| x - y))
 }
 
+/// Whether `value` is below `reference` by more than the fraction `fraction` of it (never for a NaN or an
+/// infinite `value`).
+pub fn below_by(value: f64, reference: f64, fraction: f64) -> bool {
+    value < (1.0 - fraction) * reference
+}
+
 /// The q-quantile (0 <= q <= 1) by the nearest rank of the sorted values, `None` for an empty slice.
 pub fn quantile(v: &[f64], q: f64) -> Option<f64> {
     if v.is_empty() {

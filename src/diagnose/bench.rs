@@ -727,32 +727,6 @@ mod tests {
         assert_eq!(scenario_with(&[EffectId::GapDrift], 4, 400).y, drift.y);
     }
 
-    /// Friction slips at a drawn 30-70% of the clean backlash output's half range (scaled by k_e), each way,
-    /// as the description says.
-    #[test]
-    fn friction_slips_within_the_elastic_range() {
-        for seed in 0..6 {
-            let s = scenario(Some(EffectId::Friction), seed, 300);
-            let w0: Vec<f64> = Plant::simulate(PlantParams::PAPER, &s.u)
-                .unwrap()
-                .iter()
-                .map(|o| o.w)
-                .collect();
-            let (lo, hi) = w0
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                    (a.min(*v), b.max(*v))
-                });
-            let f = s.effects.friction.as_ref().expect("friction drawn");
-            let scale = f.k_e * 0.5 * (hi - lo);
-            let (p, m) = (100.0 * f.f_plus / scale, 100.0 * f.f_minus / scale);
-            assert!((30.0..=70.0).contains(&p), "{seed}: {p}");
-            assert!((30.0..=70.0).contains(&m), "{seed}: {m}");
-            let said = format!("slip at +{p:.0}% / -{m:.0}%");
-            assert!(s.description.contains(&said), "{said} in {}", s.description);
-        }
-    }
-
     /// The drawn drift widens each gap by the fraction in the description over the record, reached at its
     /// last sample: c_rate * (n - 1) = c * g. A 10-sample record makes an off-by-two span visible through the
     /// description's whole percents (9 / 11 of the fraction).

@@ -87,10 +87,12 @@ use super::starts::{self, StartContext};
 use super::statistics::{INPUT_LINE_RATIO, diebold_mariano, input_line_ratio};
 use super::structure::{self, InitialState, Structure, StructureChoice};
 use crate::plant::{MAX_DELAY, MAX_ORDER};
-use crate::stats::{rms, rms_diff, std_dev};
+use crate::stats::{below_by, rms, rms_diff, std_dev};
 
 /// The error kind of a candidate judged by its free-run simulation.
 const SIMULATION: &str = "simulation";
+/// The fraction by which a refit of the plain model must lower its cost to replace it.
+const REFIT_GAIN: f64 = 1e-6;
 
 /// Settings of a diagnosis.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -466,7 +468,9 @@ pub fn diagnose_with_progress(
             let start = EffectModel::plain(c.model.base.clone());
             if let Some((polished, cost)) =
                 problem.fit(&start, std::slice::from_ref(&start), Objective::Simulation)
-                && clearly_below(cost, base.1)
+                // Lower by more than one part in a million: a refit that only matches the plain model up
+                // to the optimiser's tolerance is no better.
+                && below_by(cost, base.1, REFIT_GAIN)
             {
                 base = (polished, cost);
                 fitted = std::mem::take(&mut d.candidates);
@@ -1012,12 +1016,6 @@ impl Context<'_, '_> {
             sim,
         })
     }
-}
-
-/// Whether a cost is lower than `reference` by more than one part in a million (a refit that only matches
-/// the reference up to the optimiser's tolerance is no better).
-fn clearly_below(cost: f64, reference: f64) -> bool {
-    cost < reference * (1.0 - 1e-6)
 }
 
 /// The earlier fit of effect `id` that is judged again as it is when the plain model changed: its simulation

@@ -324,9 +324,8 @@ fn evidence(
             let c = d.effect().expect("chosen");
             let m2 = c.model.base.m2;
             let [up_line, dn_line] = border_drift_lines(t, *c1_rate, *c2_rate, m2);
-            let centre = centred_on;
             let (ru, rd) = (running(Mode::Up), running(Mode::Down));
-            let (lu, ld) = (centre(up_line, &ru), centre(dn_line, &rd));
+            let (lu, ld) = (centred_on(up_line, &ru), centred_on(dn_line, &rd));
             line_plot(
                 &path,
                 "Evidence for gap-drift: residual of the declared model on each border",
@@ -359,7 +358,6 @@ fn evidence(
                 }
             }
             let c = d.effect().expect("chosen");
-            let curve = border_curve;
             line_plot(
                 &path,
                 "Evidence for curved-borders: residual against the linear block's output",
@@ -373,11 +371,14 @@ fn evidence(
                     Series::points("lower border samples", dn.clone()).color(2),
                     Series::line(
                         "fitted upper curvature",
-                        curve(upper, -c.model.base.c1, &up),
+                        border_curve(upper, -c.model.base.c1, &up),
                     )
                     .color(1),
-                    Series::line("fitted lower curvature", curve(lower, c.model.base.c2, &dn))
-                        .color(2),
+                    Series::line(
+                        "fitted lower curvature",
+                        border_curve(lower, c.model.base.c2, &dn),
+                    )
+                    .color(2),
                 ],
                 Axes::LINEAR,
             )?;

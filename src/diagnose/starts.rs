@@ -181,7 +181,6 @@ fn saturation(cx: &StartContext) -> Option<Plan> {
     Some(Plan::one(starts[0].clone(), starts))
 }
 
-/// The residual's least-squares sinusoid at the spectrum's peak.
 /// The solution of the 2x2 normal equations `[[g0, g1], [g1, g2]] x = r` by Cramer's rule; (0, 0) when the
 /// determinant's magnitude is at most 1e-12 (a sinusoid at frequency 0 or pi, or too few samples: no start).
 fn solve_symmetric_2x2(g: [f64; 3], r: [f64; 2]) -> (f64, f64) {
@@ -196,6 +195,7 @@ fn solve_symmetric_2x2(g: [f64; 3], r: [f64; 2]) -> (f64, f64) {
     }
 }
 
+/// The residual's least-squares sinusoid at the spectrum's peak.
 fn periodic(cx: &StartContext) -> Option<Plan> {
     let w = cx.omega;
     let (mut ss, mut cc, mut sc, mut se, mut ce) = (0.0, 0.0, 0.0, 0.0, 0.0);
@@ -374,6 +374,7 @@ fn friction(cx: &StartContext) -> Option<Plan> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::diagnose::model::Rest;
 
     /// Cramer's rule on a symmetric 2x2 system, and no solution at or below the singularity bound.
     #[test]
@@ -394,7 +395,6 @@ mod tests {
         assert!((y1 - 5e11).abs() < 1.0);
         assert_eq!(solve_symmetric_2x2([0.0, 0.0, 5.0], [1.0, 1.0]), (0.0, 0.0));
     }
-    use crate::diagnose::model::Rest;
 
     #[test]
     fn friction_gains_grow_by_sqrt_2_up_to_twice_the_ratio() {

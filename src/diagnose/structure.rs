@@ -24,7 +24,7 @@ use super::fit::LmOptions;
 use super::model::{EffectModel, Rest};
 use super::problem::{Problem, fit_linear, fit_plain, linear_base, stabilize};
 use crate::plant::{MAX_DELAY, MAX_ORDER};
-use crate::stats::rms_diff;
+use crate::stats::{below_by, rms_diff};
 
 /// At most this many samples of the fit part are used for the choice.
 pub const SELECT_SAMPLES: usize = 30_000;
@@ -152,12 +152,6 @@ impl InitialState {
     }
 }
 
-/// Whether the error `from_first` is more than [`REST_MARGIN`] below `from_zero` (never with an infinite
-/// or NaN `from_first`).
-fn clearly_below(from_first: f64, from_zero: f64) -> bool {
-    from_first < (1.0 - REST_MARGIN) * from_zero
-}
-
 /// Choose the initial state on the fit part of `p`: every structure of `structures` gets its equation-error
 /// fit (with a constant) on the first [`SELECT_SAMPLES`] samples of the fit part, simulated free-run there
 /// from rest at 0 and from rest at the first input; the first input wins when the best error from there is
@@ -193,7 +187,7 @@ pub(crate) fn initial_state(p: &Problem, structures: &[Structure]) -> InitialSta
         .collect();
     let best = |i: usize| errors.iter().map(|e| e[i]).fold(f64::INFINITY, f64::min);
     let (from_zero, from_first) = (best(0), best(1));
-    if clearly_below(from_first, from_zero) {
+    if below_by(from_first, from_zero, REST_MARGIN) {
         InitialState {
             input: u0,
             chosen_by: "first-input",
@@ -361,6 +355,7 @@ mod tests {
     /// scale.
     #[test]
     fn the_first_input_needs_a_tenth_less_error() {
+        let clearly_below = |first: f64, zero: f64| below_by(first, zero, REST_MARGIN);
         assert!(clearly_below(5.0, 10.0));
         assert!(clearly_below(8.9, 10.0));
         assert!(!clearly_below(9.1, 10.0));

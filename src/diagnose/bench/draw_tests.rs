@@ -170,3 +170,24 @@ fn gap_drift_rates_are_positive_fractions_of_the_gaps() {
         }
     }
 }
+
+/// Friction slips at a drawn 30-70% of the clean backlash output's half range (scaled by k_e), each way,
+/// as the description says.
+#[test]
+fn friction_slips_within_the_elastic_range() {
+    for seed in SEEDS {
+        let s = scenario(Some(EffectId::Friction), seed, N);
+        let (lo, hi) = clean_w(&s)
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(*v), b.max(*v))
+            });
+        let f = s.effects.friction.as_ref().expect("friction drawn");
+        let scale = f.k_e * 0.5 * (hi - lo);
+        let (p, m) = (100.0 * f.f_plus / scale, 100.0 * f.f_minus / scale);
+        assert!((30.0..=70.0).contains(&p), "{seed}: {p}");
+        assert!((30.0..=70.0).contains(&m), "{seed}: {m}");
+        let said = format!("slip at +{p:.0}% / -{m:.0}%");
+        assert!(s.description.contains(&said), "{said} in {}", s.description);
+    }
+}

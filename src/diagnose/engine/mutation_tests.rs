@@ -168,6 +168,7 @@ fn sum_std_error_by_hand() {
 /// A refit of the plain model replaces it only when more than one part in a million lower.
 #[test]
 fn a_refit_must_be_clearly_lower() {
+    let clearly_below = |cost: f64, reference: f64| below_by(cost, reference, REFIT_GAIN);
     assert!(clearly_below(0.99, 1.0));
     assert!(clearly_below(99.9998, 100.0));
     assert!(!clearly_below(99.9999, 100.0));
