@@ -687,7 +687,24 @@ mod tests {
             assert!((got - want).abs() < 1e-6, "{a:?} {b:?} {offset}");
         }
     }
-}
 
-#[cfg(test)]
-mod mutation_tests;
+    /// Refining after exploring on a window caps the iterations and the damping; without a window the fit's
+    /// own settings hold.
+    #[test]
+    fn polish_is_capped_only_after_a_window() {
+        let n = EXPLORE_SAMPLES + 100;
+        let (u, y) = (vec![0.0; n], vec![0.0; n]);
+        let lm = LmOptions::default();
+        let whole = Problem::new(&u, &y, n, lm);
+        assert!(whole.windowed());
+        let capped = whole.polish();
+        assert_eq!(
+            (capped.max_iter, capped.lambda_max),
+            (POLISH_ITER, POLISH_LAMBDA_MAX)
+        );
+        assert_eq!(capped.max_evals, lm.max_evals);
+        let short = Problem::new(&u, &y, EXPLORE_SAMPLES, lm);
+        assert!(!short.windowed());
+        assert_eq!(short.polish(), lm);
+    }
+}

@@ -1024,7 +1024,19 @@ mod tests {
         assert_eq!(params_text(&serde_json::json!(null)), "");
         assert_eq!(params_text(&serde_json::json!({})), "");
     }
-}
 
-#[cfg(test)]
-mod mutation_tests;
+    /// The autocorrelation of AR processes by Yule-Walker: AR(1) with phi 0.5 has r(l) = 0.5^l; AR(2) with
+    /// phi (0.5, 0.3) has r(1) = phi1 / (1 - phi2) = 5/7 and r(2) = phi1 r(1) + phi2 = 23/35.
+    #[test]
+    fn ar_autocorrelation_by_yule_walker() {
+        let r = ar_acf(&[0.5], 3);
+        for (l, v) in r.iter().enumerate() {
+            assert!((v - 0.5f64.powi(l as i32 + 1)).abs() < 1e-12, "{r:?}");
+        }
+        let r = ar_acf(&[0.5, 0.3], 2);
+        assert!(
+            (r[0] - 5.0 / 7.0).abs() < 1e-12 && (r[1] - 23.0 / 35.0).abs() < 1e-12,
+            "{r:?}"
+        );
+    }
+}

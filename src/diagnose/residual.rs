@@ -248,6 +248,22 @@ fn stats(label: impl Into<String>, v: &[f64]) -> GroupStats {
     }
 }
 
+/// Groups of at most this many samples are reported but not judged (their mean and rms are too uncertain).
+const MIN_JUDGED: usize = 10;
+
+fn judged(g: &GroupStats) -> bool {
+    g.count > MIN_JUDGED
+}
+
+/// The largest group mean of the judged groups in standard errors of the overall rms (0 when none is judged).
+fn worst_mean(groups: &[GroupStats], overall_rms: f64) -> f64 {
+    groups
+        .iter()
+        .filter(|g| judged(g))
+        .map(|g| g.mean.abs() / (overall_rms / (g.count as f64).sqrt()))
+        .fold(0.0, f64::max)
+}
+
 /// The residual by backlash mode of the fitted model. A mode whose mean is more than 1.96 standard errors
 /// (from the overall rms) from zero, or whose rms is twice another's, rejects.
 pub fn by_mode(e: &[f64], modes: &[Mode]) -> (Vec<GroupStats>, Verdict) {
@@ -264,17 +280,8 @@ pub fn by_mode(e: &[f64], modes: &[Mode]) -> (Vec<GroupStats>, Verdict) {
         stats("held", &pick(Mode::Held)),
     ];
     let overall = stats("all", e).rms.max(f64::MIN_POSITIVE);
-    let mut worst = 0.0f64;
-    for g in &groups {
-        if g.count > 10 {
-            worst = worst.max(g.mean.abs() / (overall / (g.count as f64).sqrt()));
-        }
-    }
-    let rms: Vec<f64> = groups
-        .iter()
-        .filter(|g| g.count > 10)
-        .map(|g| g.rms)
-        .collect();
+    let worst = worst_mean(&groups, overall);
+    let rms: Vec<f64> = groups.iter().filter(|g| judged(g)).map(|g| g.rms).collect();
     let ratio = if rms.len() >= 2 {
         rms.iter().cloned().fold(0.0, f64::max)
             / rms
@@ -362,11 +369,7 @@ pub fn since_reversal(e: &[f64], x_hat: &[f64]) -> (Vec<GroupStats>, Verdict) {
         })
         .collect();
     let overall = stats("all", e).rms.max(f64::MIN_POSITIVE);
-    let worst = groups
-        .iter()
-        .filter(|g| g.count > 10)
-        .map(|g| g.mean.abs() / (overall / (g.count as f64).sqrt()))
-        .fold(0.0, f64::max);
+    let worst = worst_mean(&groups, overall);
     (
         groups,
         Verdict::exceeds(
@@ -1119,5 +1122,39 @@ mod tests {
             allowed_outside(41)
         );
         assert_eq!(allowed_outside(0), 1.0);
+    }
+
+    /// Groups of at most ten samples are not judged: up and down alternate +-1 (mean 0, rms 1), and a held
+    /// group alternating +-5 has five times their rms. Ten held samples leave the rms ratio at 1; twelve
+    /// make it 5 and reject.
+    #[test]
+    fn mode_groups_of_ten_or_fewer_are_not_judged() {
+        let verdict = |held: usize| {
+            let mut e = Vec::new();
+            let mut modes = Vec::new();
+            for (mode, count, size) in [
+                (Mode::Up, 50, 1.0),
+                (Mode::Down, 50, 1.0),
+                (Mode::Held, held, 5.0),
+            ] {
+                for k in 0..count {
+                    e.push(if k % 2 == 0 { size } else { -size });
+                    modes.push(mode);
+                }
+            }
+            by_mode(&e, &modes).1
+        };
+        let ten = verdict(10);
+        assert!(
+            !ten.rejects && ten.detail.ends_with("rms ratio 1.00"),
+            "{}",
+            ten.detail
+        );
+        let twelve = verdict(12);
+        assert!(
+            twelve.rejects && twelve.detail.ends_with("rms ratio 5.00"),
+            "{}",
+            twelve.detail
+        );
     }
 }

@@ -591,6 +591,15 @@ mod tests {
             (0.5, 1.0, 1.0)
         );
         assert_eq!(first.base.b, vec![0.8]);
+        // The next gain (start 32, after 4 offsets x 4 fractions x 2 gaps) scales the gaps with it.
+        let second = &series.starts[32];
+        let r2 = std::f64::consts::SQRT_2;
+        assert!((second.base.b[0] - 0.8 * r2).abs() < 1e-12);
+        assert!(
+            (second.base.c1 - 0.5 * r2).abs() < 1e-12 && (second.base.c2 - r2).abs() < 1e-12,
+            "{:?}",
+            (second.base.c1, second.base.c2)
+        );
         // quantile(y, 0.99): the element at round(100 * 0.99) = 99 of the sorted 101, 2 (99 / 10 - 5) = 9.8.
         match first.exts[..] {
             [
