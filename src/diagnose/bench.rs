@@ -128,17 +128,9 @@ pub fn scenario_with(present: &[EffectId], seed: u64, n: usize) -> Scenario {
         fixed_noise,
         ..
     } = b;
+    // With no noise std the noise is zero whatever its colour.
     params.noise_std = 0.0;
-    let noise_free = simulate_with_effects(
-        &params,
-        &Effects {
-            coloured_noise: None,
-            ..e
-        },
-        &u,
-        0,
-    )
-    .expect("bench parameters are valid");
+    let noise_free = simulate_with_effects(&params, &e, &u, 0).expect("bench parameters are valid");
     let f: Vec<f64> = noise_free.iter().map(|o| o.f).collect();
     params.noise_std = fixed_noise.unwrap_or(std_dev(&f) / snr);
     params.noise_seed = seed ^ 0x5EED_0000_0000;

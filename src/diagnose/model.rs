@@ -784,10 +784,20 @@ pub(crate) mod tests {
         }
     }
 
-    fn input(n: usize) -> Vec<f64> {
+    /// Two tones, 2 sin(0.37 k) + cos(0.05 k): the diagnose modules' test input.
+    pub(crate) fn input(n: usize) -> Vec<f64> {
         (0..n)
             .map(|k| 2.0 * (k as f64 * 0.37).sin() + (k as f64 * 0.05).cos())
             .collect()
+    }
+
+    /// [`input`] and the paper model's simulation of it from rest at 0.
+    pub(crate) fn paper_record(n: usize) -> (Vec<f64>, Simulation) {
+        let u = input(n);
+        let sim = EffectModel::plain(paper_base())
+            .simulate(&u, Rest::ZERO, n, 1e6)
+            .expect("the paper model runs");
+        (u, sim)
     }
 
     #[test]

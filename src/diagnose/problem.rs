@@ -26,6 +26,9 @@ use crate::stats::std_dev;
 /// Exploration (screening grids of starts, short runs) uses at most this many samples of the fit part.
 pub const EXPLORE_SAMPLES: usize = 20_000;
 
+/// Iterations of each short run from a start during exploration.
+pub const EXPLORE_ITER: usize = 8;
+
 /// Iterations of the refinement on the whole fit part after exploring on a shorter window.
 pub const POLISH_ITER: usize = 6;
 
@@ -105,6 +108,15 @@ impl<'a> Problem<'a> {
             }
         } else {
             self.lm
+        }
+    }
+
+    /// The settings of a short run from each kept start during exploration: at most [`EXPLORE_ITER`]
+    /// iterations.
+    fn exploration(&self) -> LmOptions {
+        LmOptions {
+            max_iter: self.lm.max_iter.min(EXPLORE_ITER),
+            ..self.lm
         }
     }
 
@@ -309,10 +321,7 @@ impl<'a> Problem<'a> {
         if kept.len() == 1 && !self.windowed() {
             return Some((kept[0].clone(), None));
         }
-        let short = LmOptions {
-            max_iter: self.lm.max_iter.min(8),
-            ..self.lm
-        };
+        let short = self.exploration();
         kept.into_iter()
             .filter_map(|s| levenberg_marquardt(&window, s, typ, &[], &short).ok())
             .map(|fit| (fit.theta, fit.cost))
@@ -523,15 +532,10 @@ pub(crate) fn stabilize(a: &mut [f64]) {
     a.iter_mut().for_each(|v| *v = 0.0);
 }
 
-/// Fit the plain backlash model: MRGIA, least-squares, linear and dynamics-free starts, then perturbed
-/// restarts; never above the linear model's cost (`linear`).
-pub(crate) fn fit_plain(
-    p: &Problem,
-    s: Structure,
-    restarts: usize,
-    seed: u64,
-    linear: &(BaseModel, f64),
-) -> Option<(EffectModel, f64)> {
+/// The plain model's starts: MRGIA's estimate, the least-squares model with unit slopes and its constant
+/// turned into gaps around a small play, a start without dynamics, every one stable and with its play open;
+/// then the linear model (`linear`, no play) and the linear model with a small play opened around it.
+fn plain_starts(p: &Problem, s: Structure, linear: &BaseModel) -> Vec<BaseModel> {
     let mut starts: Vec<BaseModel> = Vec::new();
     starts.extend(p.mrgia_start(s));
     if let Some((a, b, o)) = p.arx(s) {
@@ -554,14 +558,28 @@ pub(crate) fn fit_plain(
         open_play(m, 0.01 * p.y_scale);
     }
     // The linear model itself (no play) and with a small play opened around it.
-    let (lin, lin_cost) = linear;
-    starts.push(lin.clone());
+    starts.push(linear.clone());
     starts.push(BaseModel {
-        c1: lin.c1 + 0.01 * p.y_scale,
-        c2: lin.c2 + 0.01 * p.y_scale,
-        ..lin.clone()
+        c1: linear.c1 + 0.01 * p.y_scale,
+        c2: linear.c2 + 0.01 * p.y_scale,
+        ..linear.clone()
     });
-    let models: Vec<EffectModel> = starts.into_iter().map(EffectModel::plain).collect();
+    starts
+}
+
+/// Fit the plain backlash model: MRGIA, least-squares, linear and dynamics-free starts, then perturbed
+/// restarts; never above the linear model's cost (`linear`).
+pub(crate) fn fit_plain(
+    p: &Problem,
+    s: Structure,
+    restarts: usize,
+    seed: u64,
+    linear: &(BaseModel, f64),
+) -> Option<(EffectModel, f64)> {
+    let models: Vec<EffectModel> = plain_starts(p, s, &linear.0)
+        .into_iter()
+        .map(EffectModel::plain)
+        .collect();
     let template = models[0].clone();
     let (mut best, mut cost) = p.fit(&template, &models, Objective::Simulation)?;
     // Perturbed restarts around the best. On a long record a restart is explored on the window and refined
@@ -620,6 +638,7 @@ pub(crate) fn fit_plain(
             cost = c;
         }
     }
+    let (lin, lin_cost) = linear;
     if cost > *lin_cost {
         return Some((EffectModel::plain(lin.clone()), *lin_cost));
     }
@@ -706,5 +725,65 @@ mod tests {
         let short = Problem::new(&u, &y, EXPLORE_SAMPLES, lm);
         assert!(!short.windowed());
         assert_eq!(short.polish(), lm);
+    }
+
+    /// A shortened problem fits on its own first samples: fit part, exploration window and time scale follow
+    /// the new length; exploration runs are capped at [`EXPLORE_ITER`] iterations.
+    #[test]
+    fn a_shortened_problem_and_the_exploration_settings() {
+        let n = 3 * EXPLORE_SAMPLES;
+        let (u, y) = (vec![0.0; n], vec![0.0; n]);
+        let p = Problem::new(&u, &y, 2 * EXPLORE_SAMPLES, LmOptions::default());
+        let short = p.shortened(500);
+        assert_eq!(
+            (short.n_fit, short.n_explore, short.time_scale),
+            (500, 500, 500.0)
+        );
+        let long = p.shortened(EXPLORE_SAMPLES + 1);
+        assert_eq!(long.n_explore, EXPLORE_SAMPLES);
+        assert_eq!(p.exploration().max_iter, EXPLORE_ITER);
+        assert_eq!(p.exploration().max_evals, p.lm.max_evals);
+    }
+
+    /// The plain model's starts on y = 2 u(k-1) + 3 (no dynamics, nb = 0): MRGIA's, the least-squares start
+    /// with unit slopes and the constant 3 as gaps -3 + 0.05 s and 3 + 0.05 s (s the output's std), the
+    /// start without dynamics with that gain (its play opened to 0.01 s), the linear
+    /// model as given and with 0.01 s added to both gaps.
+    #[test]
+    fn plain_starts_by_hand() {
+        let n = 400;
+        let u = crate::diagnose::model::tests::input(n);
+        let y: Vec<f64> = (0..n)
+            .map(|k| if k == 0 { 3.0 } else { 2.0 * u[k - 1] + 3.0 })
+            .collect();
+        let p = Problem::new(&u, &y, 300, LmOptions::default());
+        let st = Structure {
+            na: 0,
+            nb: 0,
+            delay: 1,
+        };
+        let linear = BaseModel {
+            c1: -0.7,
+            c2: 0.9,
+            ..BaseModel::zero(0, 0, 1)
+        };
+        let starts = plain_starts(&p, st, &linear);
+        let s = p.y_scale;
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-6;
+        let n_mrgia = usize::from(p.mrgia_start(st).is_some());
+        assert_eq!(starts.len(), n_mrgia + 4);
+        let ls = &starts[n_mrgia];
+        assert!(close(ls.b[0], 2.0), "{ls:?}");
+        assert!(
+            close(ls.c1, -3.0 + 0.05 * s) && close(ls.c2, 3.0 + 0.05 * s),
+            "{ls:?}"
+        );
+        let flat = &starts[n_mrgia + 1];
+        assert!(close(flat.b[0], 2.0), "{flat:?}");
+        assert!(flat.c1 == 0.01 * s && flat.c2 == 0.01 * s, "{flat:?}");
+        assert_eq!(starts[n_mrgia + 2], linear);
+        let opened = &starts[n_mrgia + 3];
+        assert!(opened.c1 == -0.7 + 0.01 * s && opened.c2 == 0.9 + 0.01 * s);
+        assert_eq!(opened.b, linear.b);
     }
 }

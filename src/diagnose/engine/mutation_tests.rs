@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::diagnose::model::Rest;
-use crate::diagnose::model::tests::paper_base;
+use crate::diagnose::model::tests::{input, paper_base, paper_record};
 
 /// A judged candidate's numbers on a record whose output is the paper model's plus 0.3 (n = 80, fit part 60):
 /// the held-out error is 0.3 on every sample, the fit RMSE sqrt(cost / 60), and the BIC
@@ -11,14 +11,8 @@ use crate::diagnose::model::tests::paper_base;
 /// The fit counts as stuck (and says so) exactly when its cost equals the current model's.
 #[test]
 fn judge_adds_every_penalty_to_the_bic() {
-    let n = 80;
-    let u: Vec<f64> = (0..n)
-        .map(|k| 2.0 * (k as f64 * 0.37).sin() + (k as f64 * 0.05).cos())
-        .collect();
     let model = EffectModel::plain(paper_base());
-    let sim = model
-        .simulate(&u, Rest::ZERO, n, 1e6)
-        .expect("the paper model runs");
+    let (u, sim) = paper_record(80);
     let y: Vec<f64> = sim.y.iter().map(|v| v + 0.3).collect();
     let p = Problem::new(&u, &y, 60, LmOptions::default());
     let cfg = DiagnoseConfig::new(2, 0, 1);
@@ -128,9 +122,7 @@ fn a_residual_line_the_input_carries_is_set_aside() {
 #[test]
 fn linear_fit_reports_the_rmse_per_sample() {
     let n = 80;
-    let u: Vec<f64> = (0..n)
-        .map(|k| 2.0 * (k as f64 * 0.37).sin() + (k as f64 * 0.05).cos())
-        .collect();
+    let u = input(n);
     let lin = BaseModel {
         m2: 1.0,
         ..paper_base()
@@ -211,4 +203,37 @@ fn only_simulation_fits_of_the_same_effect_are_judged_again() {
         judged_as_is(&fitted[..1], EffectId::ColouredNoise).map(|c| c.fit_cost),
         None
     );
+}
+
+/// The time budget reaches every fit, and the progress display hears from the rounds as well as from the
+/// stages: on the paper model's output plus a sinusoid at a frequency the input lacks (the residual points to
+/// a periodic disturbance), a generous budget fits the candidates the residual points to and tells of each;
+/// a budget of a microsecond is spent before the first round, which lists them as not tried and fits none.
+#[test]
+fn the_budget_and_the_progress_reach_the_rounds() {
+    let (u, sim) = paper_record(600);
+    let y: Vec<f64> = sim
+        .y
+        .iter()
+        .enumerate()
+        .map(|(k, v)| v + 0.4 * (1.3 * k as f64).sin())
+        .collect();
+    let run = |budget: Duration| {
+        let told = std::sync::Mutex::new(Vec::<String>::new());
+        let mut cfg = DiagnoseConfig::new(2, 0, 1);
+        cfg.time_budget = budget;
+        let d = diagnose_with_progress(&u, &y, &cfg, &|s| told.lock().unwrap().push(s.to_string()))
+            .expect("the record is diagnosed");
+        (d, told.into_inner().unwrap())
+    };
+    let (full, told) = run(Duration::from_secs(300));
+    assert!(full.not_tried.is_empty() && !full.candidates.is_empty());
+    assert!(
+        told.iter()
+            .any(|s| s.starts_with("round 1: fitting the candidates") && !s.contains("(0 of")),
+        "{told:?}"
+    );
+    let (spent, _) = run(Duration::from_micros(1));
+    assert!(spent.candidates.is_empty(), "{:?}", spent.candidates);
+    assert!(!spent.not_tried.is_empty());
 }

@@ -1,7 +1,7 @@
 //! Tests that pin behaviour a mutation sample found unchecked.
 
 use super::*;
-use crate::diagnose::model::tests::paper_base;
+use crate::diagnose::model::tests::{paper_base, paper_record};
 
 /// The divergence bound is 1e4 (1 + max|u| + max|y|), the maxima taken over absolute values:
 /// with max|u| = 2 (a negative sample) and max|y| = 3 (a negative sample), 1e4 * (1 + 2 + 3) = 60 000.
@@ -18,14 +18,8 @@ fn sim_limit_scales_with_the_largest_magnitudes() {
 #[test]
 fn six_starts_are_all_fitted_without_screening() {
     let n = 150;
-    let u: Vec<f64> = (0..n)
-        .map(|k| 2.0 * (k as f64 * 0.37).sin() + (k as f64 * 0.05).cos())
-        .collect();
-    let truth = EffectModel::plain(paper_base());
-    let y = truth
-        .simulate(&u, Rest::ZERO, n, 1e6)
-        .expect("the paper model runs")
-        .y;
+    let (u, sim) = paper_record(n);
+    let y = sim.y;
     let p = Problem::new(&u, &y, n, LmOptions::default());
     assert!(!p.windowed());
     let mut near = paper_base();
@@ -38,7 +32,7 @@ fn six_starts_are_all_fitted_without_screening() {
         .cost(&EffectModel::plain(near), Objective::Simulation)
         .expect("the valid start runs");
     let (_, cost) = p
-        .explore(&truth, &starts, Objective::Simulation)
+        .explore(&EffectModel::plain(paper_base()), &starts, Objective::Simulation)
         .expect("one start is valid");
     let cost = cost.expect("a short fit ran and reported its window cost");
     assert!(cost < start_cost, "{cost} >= {start_cost}");
@@ -157,13 +151,8 @@ fn restarts_never_raise_the_cost() {
 }
 
 fn restarts_never_raise_the_cost_on(n: usize) {
-    let u: Vec<f64> = (0..n)
-        .map(|k| 2.0 * (k as f64 * 0.37).sin() + (k as f64 * 0.05).cos())
-        .collect();
-    let y = EffectModel::plain(paper_base())
-        .simulate(&u, Rest::ZERO, n, 1e6)
-        .expect("the paper model runs")
-        .y;
+    let (u, sim) = paper_record(n);
+    let y = sim.y;
     let frozen = LmOptions {
         max_iter: 0,
         ..LmOptions::default()
