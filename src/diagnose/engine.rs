@@ -461,25 +461,30 @@ pub fn diagnose_with_progress(
         // honest optimum, and the round is judged again against it. The candidates already fitted are
         // fits of their own structures whatever the plain model is: they are judged again as they are, not
         // refitted.
-        if rounds < 3
-            && let Some(c) = d.effect()
-            && !c.model.exts.is_empty()
-        {
-            let start = EffectModel::plain(c.model.base.clone());
-            if let Some((polished, cost)) =
+        if let Some(start) = refit_start(rounds, d.effect())
+            && let Some((polished, cost)) =
                 problem.fit(&start, std::slice::from_ref(&start), Objective::Simulation)
-                // Lower by more than one part in a million: a refit that only matches the plain model up
-                // to the optimiser's tolerance is no better.
-                && below_by(cost, base.1, REFIT_GAIN)
-            {
-                base = (polished, cost);
-                fitted = std::mem::take(&mut d.candidates);
-                continue;
-            }
+            // Lower by more than one part in a million: a refit that only matches the plain model up to the
+            // optimiser's tolerance is no better.
+            && below_by(cost, base.1, REFIT_GAIN)
+        {
+            base = (polished, cost);
+            fitted = std::mem::take(&mut d.candidates);
+            continue;
         }
         extend(&problem, cfg, &mut d);
         return Ok(d);
     }
+}
+
+/// Refits of the plain model from a winner's base part, at most.
+const MAX_REFITS: usize = 2;
+
+/// The plain model to refit from after round `rounds` (counted from 1): the winner's own base part, when it
+/// extends the plain model and fewer than [`MAX_REFITS`] refits have run.
+fn refit_start(rounds: usize, winner: Option<&Candidate>) -> Option<EffectModel> {
+    let c = winner.filter(|c| rounds <= MAX_REFITS && !c.model.exts.is_empty())?;
+    Some(EffectModel::plain(c.model.base.clone()))
 }
 
 /// The loop after the first round: while the last round kept an effect, the extended model becomes the

@@ -787,3 +787,6 @@ mod tests {
         assert_eq!(opened.b, linear.b);
     }
 }
+
+#[cfg(test)]
+mod mutation_tests;

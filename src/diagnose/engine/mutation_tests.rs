@@ -1,8 +1,8 @@
 //! Tests that pin behaviour a mutation sample found unchecked.
 
 use super::*;
-use crate::diagnose::model::Rest;
 use crate::diagnose::model::tests::{input, paper_base, paper_record};
+use crate::diagnose::model::{Extension, Rest};
 
 /// A judged candidate's numbers on a record whose output is the paper model's plus 0.3 (n = 80, fit part 60):
 /// the held-out error is 0.3 on every sample, the fit RMSE sqrt(cost / 60), and the BIC
@@ -168,11 +168,9 @@ fn a_refit_must_be_clearly_lower() {
     assert!(!clearly_below(1.1, 1.0));
 }
 
-/// Only an earlier simulation fit of the same effect is judged again as it is; a noise model's prediction
-/// fit of the same effect, or another effect's, is not.
-#[test]
-fn only_simulation_fits_of_the_same_effect_are_judged_again() {
-    let candidate = |id: EffectId, error_kind: &'static str, fit_cost: f64| Candidate {
+/// A candidate of effect `id` with the paper model, fitted by `error_kind` to `fit_cost`.
+fn candidate(id: EffectId, error_kind: &'static str, fit_cost: f64) -> Candidate {
+    Candidate {
         id,
         pointed_by: vec![],
         model: EffectModel::plain(paper_base()),
@@ -189,7 +187,32 @@ fn only_simulation_fits_of_the_same_effect_are_judged_again() {
         reason: String::new(),
         output: vec![],
         sim: Default::default(),
-    };
+    }
+}
+
+/// The plain model is refitted from a winner's base part after rounds 1 and 2 only, and only when the
+/// winner extends the plain model.
+#[test]
+fn the_plain_model_is_refitted_from_an_extending_winner_twice_at_most() {
+    let mut winner = candidate(EffectId::GapDrift, SIMULATION, 1.0);
+    winner.model.base.b = vec![0.7];
+    let plain_winner = winner.clone();
+    winner.model = winner.model.with(Extension::GapDrift {
+        c1_rate: 1e-3,
+        c2_rate: 0.0,
+    });
+    let start = refit_start(1, Some(&winner)).expect("round 1 refits");
+    assert_eq!(start, EffectModel::plain(winner.model.base.clone()));
+    assert!(refit_start(2, Some(&winner)).is_some());
+    assert_eq!(refit_start(3, Some(&winner)), None);
+    assert_eq!(refit_start(1, Some(&plain_winner)), None);
+    assert_eq!(refit_start(1, None), None);
+}
+
+/// Only an earlier simulation fit of the same effect is judged again as it is; a noise model's prediction
+/// fit of the same effect, or another effect's, is not.
+#[test]
+fn only_simulation_fits_of_the_same_effect_are_judged_again() {
     let fitted = [
         candidate(EffectId::ColouredNoise, "one-step prediction", 1.0),
         candidate(EffectId::GapDrift, SIMULATION, 2.0),

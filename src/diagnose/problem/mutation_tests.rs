@@ -32,7 +32,11 @@ fn six_starts_are_all_fitted_without_screening() {
         .cost(&EffectModel::plain(near), Objective::Simulation)
         .expect("the valid start runs");
     let (_, cost) = p
-        .explore(&EffectModel::plain(paper_base()), &starts, Objective::Simulation)
+        .explore(
+            &EffectModel::plain(paper_base()),
+            &starts,
+            Objective::Simulation,
+        )
         .expect("one start is valid");
     let cost = cost.expect("a short fit ran and reported its window cost");
     assert!(cost < start_cost, "{cost} >= {start_cost}");
