@@ -869,6 +869,11 @@ struct Findings {
     clip: (f64, f64),
 }
 
+/// The lags the autocorrelation tests use: those asked for, at most a fifth of the fit part, at least one.
+fn usable_lags(lags: usize, n_fit: usize) -> usize {
+    lags.min(n_fit / 5).max(1)
+}
+
 /// Run every residual test on the fit part.
 fn residual_tests(
     e: &[f64],
@@ -880,7 +885,7 @@ fn residual_tests(
 ) -> Findings {
     let x = &sim.x[..n_fit];
     let modes = &sim.mode[..n_fit];
-    let lags = lags.min(n_fit / 5).max(1);
+    let lags = usable_lags(lags, n_fit);
     let (_, by_mode) = residual::by_mode(e, modes);
     let (_, since) = residual::since_reversal(e, x);
     let (omega, peak) = residual::spectrum_peak(e);

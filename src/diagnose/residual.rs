@@ -649,13 +649,8 @@ pub fn extreme_increments(e: &[f64], y_hat: &[f64]) -> Verdict {
                 })
                 .sum();
             let se = (ss / (idx.len() - 1) as f64 / sxx).sqrt();
-            let t = if se > 0.0 {
-                b / se
-            } else if b != 0.0 {
-                f64::INFINITY
-            } else {
-                0.0
-            };
+            // A slope with no scatter about it is infinitely significant (b / 0 = +-inf); none, not at all.
+            let t = if b == 0.0 { 0.0 } else { b / se };
             worst = worst.max(t.abs());
             detail.push(format!(
                 "{label} 15%: slope {b:.3} (t {t:.1}, {} samples)",
@@ -1093,7 +1088,8 @@ mod tests {
 
     /// Held samples at an extreme are not moves: y_hat falls once to 0, holds there 19 samples, then rises
     /// 1, 2, ..., 19. Only one sample falls at the bottom and 7 rise at the top (fewer than 10 each), so the
-    /// test has nothing to say, whatever the residual does while the output holds.
+    /// test has nothing to say, whatever the residual does while the output holds; likewise for an output held
+    /// at its top.
     #[test]
     fn extreme_increments_ignore_held_samples() {
         let mut yh = vec![1.0];
@@ -1104,6 +1100,16 @@ mod tests {
         e[5] = 0.1;
         let v = extreme_increments(&e, &yh);
         assert_eq!(v.statistic, 0.0);
+        assert_eq!(v.detail, "too few samples at the extremes");
+        // The mirror image: y_hat rises 0, 1, ..., 19, holds at 19 for 20 samples, falls once to 0; one
+        // sample rises at the top.
+        let mut yh: Vec<f64> = (0..20).map(f64::from).collect();
+        yh.extend([19.0; 20]);
+        yh.push(0.0);
+        let mut e = vec![0.0; yh.len()];
+        e[25] = 0.5;
+        e[30] = 0.1;
+        let v = extreme_increments(&e, &yh);
         assert_eq!(v.detail, "too few samples at the extremes");
     }
 

@@ -547,6 +547,17 @@ mod tests {
         assert_eq!(steepness_ratio(&context(&m, &flat, &y, &y)), 1.0);
         let no_gain = EffectModel::plain(BaseModel::zero(2, 0, 1));
         assert_eq!(steepness_ratio(&context(&no_gain, &u, &y, &y)), 1.0);
+        // Only moves of u above the median move count: steps of 1, 0.5 and 0.125 in turn (median 0.5, all
+        // exact in binary), y rising 2 per unit of u on the steps of 1 and 10 on the others: the slope 2
+        // over the gain 0.4 is 5 (counting every move would give 10 / 0.4 = 25).
+        let (mut u, mut y) = (vec![0.0], vec![0.0]);
+        for k in 0..21 {
+            let du = [1.0, 0.5, 0.125][k % 3];
+            let slope = if du == 1.0 { 2.0 } else { 10.0 };
+            u.push(u[k] + du);
+            y.push(y[k] + slope * du);
+        }
+        assert_eq!(steepness_ratio(&context(&m, &u, &y, &y)), 5.0);
     }
 
     /// Friction's grid for y = 2 u (ratio 5: gains 1 .. sqrt(2)^7 = 11.3, 8 of them): per gain 4 offsets x 4

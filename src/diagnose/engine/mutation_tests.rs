@@ -260,3 +260,12 @@ fn the_budget_and_the_progress_reach_the_rounds() {
     assert!(spent.candidates.is_empty(), "{:?}", spent.candidates);
     assert!(!spent.not_tried.is_empty());
 }
+
+/// The autocorrelation tests' lags: 20 asked of a fit part of 500 (a fifth is 100) stay 20; of 53 samples,
+/// a fifth is 10; of 4, none would be left, so one.
+#[test]
+fn usable_lags_by_hand() {
+    assert_eq!(usable_lags(20, 500), 20);
+    assert_eq!(usable_lags(20, 53), 10);
+    assert_eq!(usable_lags(20, 4), 1);
+}
