@@ -11,7 +11,8 @@
 //! - [`fit_multistart`] runs from several starts and keeps the lowest cost.
 //!
 //! The finite-difference step of parameter j is `fd_rel (|theta_j| + typ_j)`, with `typ_j` a typical
-//! magnitude given by the caller (so that a parameter that starts at zero still gets a sensible step).
+//! magnitude given by the caller (so that a parameter that starts at zero still gets a sensible step; a
+//! non-finite one counts as 0 there, and as 1 in the scaling of the steps, like a zero one).
 //!
 //! Every fit is bounded: at most `max_iter` Jacobians and `max_evals` residual evaluations, and it stops at
 //! `deadline` (returning the best point so far). It stops early, as `identify oe` does, when the
@@ -240,7 +241,12 @@ fn jacobian<R: Residuals + ?Sized>(
         .map(|(col, &j)| {
             let mut trial = theta.to_vec();
             let mut rt = Vec::with_capacity(n);
-            let h0 = fd_rel * (theta[j].abs() + typ[j].abs()).max(f64::MIN_POSITIVE);
+            let t = if typ[j].is_finite() {
+                typ[j].abs()
+            } else {
+                0.0
+            };
+            let h0 = fd_rel * (theta[j].abs() + t).max(f64::MIN_POSITIVE);
             let mut evaluations = 0;
             // Forward difference; if theta + h is not a valid model (theta sits on the edge of the valid
             // region), the backward one; if neither, the parameter is locally inert.
@@ -374,17 +380,31 @@ mod tests {
         assert!((fit.theta[2] - 0.5).abs() < 1e-6);
     }
 
+    /// x^2 = 4 and x + y = 5 as residuals (solution x = 2, y = 3 from a positive start).
+    fn two_equations(th: &[f64], out: &mut Vec<f64>) -> bool {
+        out.extend([th[0] * th[0] - 4.0, th[0] + th[1] - 5.0]);
+        true
+    }
+
     /// As many residuals as free parameters (no noise variance to judge a step by): the statistical stop
     /// does not apply and the fit solves the equations. Here x^2 = 4, x + y = 5 from (1, 1).
     #[test]
     fn an_exactly_determined_problem_is_solved() {
-        let f = |th: &[f64], out: &mut Vec<f64>| {
-            out.extend([th[0] * th[0] - 4.0, th[0] + th[1] - 5.0]);
-            true
-        };
+        let f = two_equations;
         let opts = LmOptions::default();
         assert!(opts.stat_tol > 0.0);
         let fit = levenberg_marquardt(&f, &[1.0, 1.0], &[1.0; 2], &[], &opts).unwrap();
+        assert!((fit.theta[0] - 2.0).abs() < 1e-6, "{:?}", fit.theta);
+        assert!((fit.theta[1] - 3.0).abs() < 1e-6, "{:?}", fit.theta);
+    }
+
+    /// A typical magnitude of 0 or infinity says nothing: the parameter's unit is 1 and the same equations
+    /// are solved.
+    #[test]
+    fn zero_and_infinite_typical_magnitudes_count_as_one() {
+        let f = two_equations;
+        let opts = LmOptions::default();
+        let fit = levenberg_marquardt(&f, &[1.0, 1.0], &[0.0, f64::INFINITY], &[], &opts).unwrap();
         assert!((fit.theta[0] - 2.0).abs() < 1e-6, "{:?}", fit.theta);
         assert!((fit.theta[1] - 3.0).abs() < 1e-6, "{:?}", fit.theta);
     }
