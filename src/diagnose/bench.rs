@@ -336,6 +336,17 @@ mod tests {
     use crate::diagnose::engine::{DiagnoseConfig, Diagnosis, diagnose};
     use std::time::Instant;
 
+    /// A drawn sign is negative exactly when the uniform draw in its place is below one half.
+    #[test]
+    fn signs_are_negative_below_one_half() {
+        let mut uniform = Draw(ChaCha8Rng::seed_from_u64(7));
+        let mut sign = Draw(ChaCha8Rng::seed_from_u64(7));
+        for _ in 0..50 {
+            let r = uniform.uniform(0.0, 1.0);
+            assert_eq!(sign.sign(), if r < 0.5 { -1.0 } else { 1.0 }, "{r}");
+        }
+    }
+
     fn run(s: &Scenario) -> Diagnosis {
         let (na, nb, d) = s.declared;
         diagnose(&s.u, &s.y, &DiagnoseConfig::new(na, nb, d)).expect("diagnosis runs")

@@ -769,6 +769,16 @@ pub(crate) mod tests {
     use crate::plant::effects::simulate_with_effects;
     use crate::plant::{ArxParams, PlantParams};
 
+    /// A falling slope m2 that is not positive and finite is no backlash: the model does not run.
+    #[test]
+    fn a_slope_that_is_not_positive_and_finite_does_not_run() {
+        let u = input(50);
+        for m2 in [-1.0, 0.0, f64::INFINITY, f64::NAN] {
+            let m = EffectModel::plain(BaseModel { m2, ..paper_base() });
+            assert!(m.simulate(&u, Rest::ZERO, 50, 1e6).is_none(), "m2 = {m2}");
+        }
+    }
+
     /// The paper's linear block (static gain 0.8 / 2 = 0.4) and backlash, for the diagnose modules' tests.
     pub(crate) fn paper_base() -> BaseModel {
         BaseModel {

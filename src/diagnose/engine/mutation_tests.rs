@@ -66,6 +66,29 @@ fn judge_adds_every_penalty_to_the_bic() {
         )
         .expect("the paper model simulates");
     assert!(stuck.reason.contains("no valid step"), "{}", stuck.reason);
+    // "Equal" is relative to the current cost: 1e-7 above a cost of 1e6 is within 1e-12 of it.
+    let big = context(1e6)
+        .judge(
+            EffectId::ExtraDelay,
+            vec![],
+            (model.clone(), 1e6 + 1e-7, Objective::Simulation),
+        )
+        .expect("the paper model simulates");
+    assert!(big.reason.contains("no valid step"), "{}", big.reason);
+}
+
+/// The declared orders are refused above the plant's largest order, and the largest is accepted.
+#[test]
+fn declared_orders_up_to_the_largest_are_accepted() {
+    let (u, sim) = paper_record(200);
+    let check = |na: usize, nb: usize| check_record(&u, &sim.y, &DiagnoseConfig::new(na, nb, 1));
+    assert!(check(MAX_ORDER, MAX_ORDER).is_ok());
+    for (na, nb) in [(MAX_ORDER + 1, 0), (0, MAX_ORDER + 1)] {
+        let e = check(na, nb)
+            .expect_err("above the largest order")
+            .to_string();
+        assert!(e.contains(&format!("between 0 and {MAX_ORDER}")), "{e}");
+    }
 }
 
 /// A residual that is a sinusoid at a frequency the input carries is model error driven by the input: the
