@@ -264,8 +264,9 @@ fn worst_mean(groups: &[GroupStats], overall_rms: f64) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// The residual by backlash mode of the fitted model. A mode whose mean is more than 1.96 standard errors
-/// (from the overall rms) from zero, or whose rms is twice another's, rejects.
+/// The residual by backlash mode of the fitted model. A mode whose mean is more than 3 standard errors
+/// (from the overall rms) from zero, or whose rms is more than twice another's, rejects (modes of at most
+/// ten samples are not judged).
 pub fn by_mode(e: &[f64], modes: &[Mode]) -> (Vec<GroupStats>, Verdict) {
     let pick = |m: Mode| -> Vec<f64> {
         e.iter()

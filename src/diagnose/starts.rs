@@ -259,7 +259,7 @@ pub fn gain_scales(r: f64) -> Vec<f64> {
 /// above its median) over the current model's static gain; 1 when either is unknown.
 fn steepness_ratio(cx: &StartContext) -> f64 {
     let bb = &cx.current.base;
-    let gain = bb.b.iter().sum::<f64>() / (1.0 + bb.a.iter().sum::<f64>());
+    let gain = bb.static_gain();
     let (u, y) = (cx.u, cx.y);
     let du: Vec<f64> = u.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
     let du_med = quantile(&du, 0.5).unwrap_or(0.0);
@@ -279,7 +279,7 @@ fn steepness_ratio(cx: &StartContext) -> f64 {
 /// output's 1% / 99% quantiles, gap offsets and widths.
 fn friction(cx: &StartContext) -> Option<Plan> {
     let bb = &cx.current.base;
-    let gain = bb.b.iter().sum::<f64>() / (1.0 + bb.a.iter().sum::<f64>());
+    let gain = bb.static_gain();
     let (q01, q99) = (quantile(cx.y, 0.01)?, quantile(cx.y, 0.99)?);
     let u_range = quantile(cx.u, 0.99)? - quantile(cx.u, 0.01)?;
     let small_gap = 0.01 * cx.y_scale;
