@@ -635,6 +635,14 @@ mod tests {
         assert!(text.contains("## The loop"), "{text}");
         assert!(text.contains(&format!("| 2 | `{}` |", named[1])), "{text}");
         assert!(dir.join("steps.png").metadata().unwrap().len() > 1000);
+        // The evidence figure is the first named effect's own.
+        let caption = match named[0] {
+            EffectId::GapDrift => {
+                "on the upper and lower borders; with fixed gaps both would stay at zero"
+            }
+            _ => "sit on a grid of step",
+        };
+        assert!(text.contains(caption), "{text}");
         std::fs::remove_dir_all(&dir).unwrap();
 
         let (na, nb, delay) = s.declared;

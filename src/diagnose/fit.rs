@@ -409,6 +409,27 @@ mod tests {
         assert!((fit.theta[1] - 3.0).abs() < 1e-6, "{:?}", fit.theta);
     }
 
+    /// The small-gain stop needs two accepted steps in a row: on r = theta^3 from 1 every Gauss-Newton
+    /// step keeps about 2/3 of theta, so each gain is about ten times the new cost; with `rel_tol` 100
+    /// every accepted step is small and the fit ends after the second, with `rel_tol` 0 it goes on.
+    #[test]
+    fn the_small_gain_stop_needs_two_small_steps_in_a_row() {
+        let f = |th: &[f64], out: &mut Vec<f64>| {
+            out.push(th[0].powi(3));
+            true
+        };
+        let opts = |rel_tol| LmOptions {
+            rel_tol,
+            stat_tol: 0.0,
+            ..LmOptions::default()
+        };
+        let two = levenberg_marquardt(&f, &[1.0], &[1.0], &[], &opts(100.0)).unwrap();
+        assert_eq!(two.iterations, 2, "{two:?}");
+        assert!((two.theta[0] - 4.0 / 9.0).abs() < 0.01, "{two:?}");
+        let on = levenberg_marquardt(&f, &[1.0], &[1.0], &[], &opts(0.0)).unwrap();
+        assert!(on.iterations > 10, "{on:?}");
+    }
+
     #[test]
     fn fixed_parameters_stay_and_invalid_region_is_avoided() {
         let x: Vec<f64> = (0..30).map(|k| k as f64 / 10.0).collect();

@@ -1204,4 +1204,19 @@ pub(crate) mod tests {
         }));
         assert!(!plain.admits(&Extension::None));
     }
+
+    /// The size limit is on |x| itself: an input block whose output reaches the limit exactly is
+    /// valid, one that passes it is not.
+    #[test]
+    fn limit_admits_equality_and_refuses_beyond() {
+        let mut base = paper_base().with_orders(0, 0, 1);
+        base.b[0] = 1.0;
+        let m = EffectModel::plain(base);
+        let u = vec![2.0; 20];
+        assert!(m.simulate(&u, Rest(2.0), 20, 2.0).is_some());
+        assert!(m.simulate(&u, Rest(2.0), 20, 1.999).is_none());
+        let mut beyond = u.clone();
+        beyond[10] = -2.5;
+        assert!(m.simulate(&beyond, Rest(2.0), 20, 2.0).is_none());
+    }
 }

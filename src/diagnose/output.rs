@@ -571,4 +571,35 @@ mod tests {
             }
         ));
     }
+
+    /// A gap drift in the JSON: over 101 samples (100 sample periods) the borders move from c1, c2 by 100
+    /// times their rates; at 0.01 s per sample the per-second rates are 100 times the per-sample ones.
+    #[test]
+    fn gap_drift_ends_and_rates_per_second() {
+        let base = paper_base();
+        let (c1, c2) = (base.c1, base.c2);
+        let m = EffectModel::plain(base).with(Extension::GapDrift {
+            c1_rate: 1e-3,
+            c2_rate: -2e-3,
+        });
+        let current = EffectModel::plain(paper_base());
+        match EffectParams::of(EffectId::GapDrift, &m, &current, 101, Some(0.01)) {
+            EffectParams::GapDrift {
+                c1_start,
+                c2_start,
+                c1_end,
+                c2_end,
+                c1_rate_per_s,
+                c2_rate_per_s,
+                ..
+            } => {
+                assert_eq!((c1_start, c2_start), (c1, c2));
+                assert!((c1_end - (c1 + 0.1)).abs() < 1e-12, "{c1_end}");
+                assert!((c2_end - (c2 - 0.2)).abs() < 1e-12, "{c2_end}");
+                assert!((c1_rate_per_s.unwrap() - 0.1).abs() < 1e-12);
+                assert!((c2_rate_per_s.unwrap() + 0.2).abs() < 1e-12);
+            }
+            e => panic!("{e:?}"),
+        }
+    }
 }
