@@ -412,10 +412,15 @@ mod tests {
     fn check_effect(effect: EffectId) {
         let mut named = 0;
         let mut lines = Vec::new();
+        let mut reported = false;
         for seed in CHECK_SEEDS {
             let s = scenario(Some(effect), seed, CHECK_N);
             let t = Instant::now();
             let d = run(&s);
+            if !reported && d.effect_id() == Some(effect) {
+                assert_evidence_of(&s, &d, effect_evidence(effect));
+                reported = true;
+            }
             // The held-out error the effect is judged by falls: the free-run simulation error, or for a
             // noise model its one-step prediction error (its simulation error is the plain model's, as the
             // noise model adds no deterministic part).
@@ -432,6 +437,32 @@ mod tests {
             "{effect}: named in {named} of 10\n{}",
             lines.join("\n")
         );
+    }
+
+    /// A phrase of the caption of the evidence figure the report draws for `effect`.
+    fn effect_evidence(effect: EffectId) -> &'static str {
+        match effect {
+            EffectId::GapDrift => "with fixed gaps both would stay at zero",
+            EffectId::CurvedBorders => "straight borders leave no trend",
+            EffectId::ExtraDelay | EffectId::LinearOrder => {
+                "the linear block misses a term or a delay"
+            }
+            EffectId::ColouredNoise => "disturbance is (orange)",
+            EffectId::Saturation => "the clipped model does not",
+            EffectId::PeriodicDisturbance => "stands far above the noise floor",
+            EffectId::Quantization => "sit on a grid of step",
+            EffectId::Friction => "the friction element does",
+            EffectId::DirectionDependent => "rises and falls at different speeds",
+        }
+    }
+
+    /// The report of `d` draws its evidence figure and captions it with `phrase`.
+    fn assert_evidence_of(s: &Scenario, d: &Diagnosis, phrase: &str) {
+        let effect = d.effect_id().map_or("null".to_string(), |e| e.to_string());
+        let (dir, text) = report_of(s, d, &format!("evidence-{effect}-{}", s.seed));
+        assert!(text.contains(phrase), "{phrase}: {text}");
+        assert!(dir.join("evidence.png").metadata().unwrap().len() > 1000);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -484,6 +515,8 @@ mod tests {
             let d = run(&s);
             if d.effect_id().is_some() {
                 false_positives.push(line(&s, &d, 0.0));
+            } else if seed == CLEAN_CHECK_SEEDS.start {
+                assert_evidence_of(&s, &d, "No extension passed both criteria");
             }
             // The paper plant's play (c1 + c2 = 1.5) is plain in every clean record.
             assert!(d.backlash.supported, "{}", d.backlash.verdict);
