@@ -131,6 +131,23 @@ fn periodic_disturbance_is_a_multiple_of_the_noise() {
     }
 }
 
+/// The periodic disturbance's phase is uniform over the whole circle: over 40 draws every quarter of it
+/// is hit.
+#[test]
+fn periodic_phases_cover_the_circle() {
+    let mut quarters = [false; 4];
+    for seed in 0..40 {
+        let s = scenario(Some(EffectId::PeriodicDisturbance), seed, 50);
+        let phase = s.effects.periodic.as_ref().expect("drawn").phase;
+        assert!(
+            (0.0..2.0 * std::f64::consts::PI).contains(&phase),
+            "{seed}: {phase}"
+        );
+        quarters[(phase / std::f64::consts::FRAC_PI_2) as usize] = true;
+    }
+    assert_eq!(quarters, [true; 4]);
+}
+
 #[test]
 fn quantization_step_and_noise_follow_the_description() {
     for seed in SEEDS {

@@ -91,6 +91,25 @@ fn declared_orders_up_to_the_largest_are_accepted() {
     }
 }
 
+/// The longest delay to try is refused outside 1..=MAX_DELAY, in words, and accepted at both ends.
+#[test]
+fn the_longest_delay_to_try_is_between_1_and_the_largest() {
+    let (u, sim) = paper_record(200);
+    let check = |max_delay: usize| {
+        let cfg = DiagnoseConfig {
+            max_delay,
+            ..DiagnoseConfig::new(2, 0, 1)
+        };
+        check_record(&u, &sim.y, &cfg)
+    };
+    assert!(check(1).is_ok());
+    assert!(check(MAX_DELAY).is_ok());
+    for bad in [0, MAX_DELAY + 1] {
+        let e = check(bad).expect_err("outside the range").to_string();
+        assert!(e.contains(&format!("between 1 and {MAX_DELAY}")), "{e}");
+    }
+}
+
 /// A residual that is a sinusoid at a frequency the input carries is model error driven by the input: the
 /// round sets the periodic disturbance aside, says so, and (every other effect excluded here, so nothing is
 /// fitted) tries nothing. The input is a pure sinusoid at 0.3 rad/sample, so its periodogram at the
