@@ -612,6 +612,7 @@ mod tests {
         }
         let (dir, text) = report_of(&s, &d, "diag");
         assert!(text.contains("**Effect: `saturation`**"));
+        assert!(!text.contains("Effects found"), "one effect: {text}");
         for f in [
             "heldout.png",
             "residual.png",
@@ -666,6 +667,11 @@ mod tests {
 
         let (dir, text) = report_of(&s, &d, "loop");
         assert!(text.contains("## The loop"), "{text}");
+        let found = format!(
+            "**Effects found, in order: `{}`, then `{}`.**",
+            named[0], named[1]
+        );
+        assert!(text.contains(&found), "{text}");
         assert!(text.contains(&format!("| 2 | `{}` |", named[1])), "{text}");
         assert!(dir.join("steps.png").metadata().unwrap().len() > 1000);
         // The evidence figure is the first named effect's own.
