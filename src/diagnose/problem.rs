@@ -567,6 +567,13 @@ fn plain_starts(p: &Problem, s: Structure, linear: &BaseModel) -> Vec<BaseModel>
     starts
 }
 
+/// A restart explored on the window is refined on the whole fit part only if the optimum it reached there
+/// (`window_cost`) is below the best model's own optimum there; when the best has none on the window, any
+/// restart is worth refining.
+fn worth_refining(window_cost: f64, best_window: Option<f64>) -> bool {
+    best_window.is_none_or(|b| window_cost < b)
+}
+
 /// Fit the plain backlash model: MRGIA, least-squares, linear and dynamics-free starts, then perturbed
 /// restarts; never above the linear model's cost (`linear`).
 pub(crate) fn fit_plain(
@@ -620,7 +627,7 @@ pub(crate) fn fit_plain(
             else {
                 continue;
             };
-            if best_window.is_some_and(|b| c >= b) {
+            if !worth_refining(c, best_window) {
                 continue;
             }
             if let Some((m, c_full)) =
@@ -648,6 +655,15 @@ pub(crate) fn fit_plain(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Refined only when strictly below the best's window optimum, or when the best has none.
+    #[test]
+    fn a_restart_is_refined_only_below_the_best_window_optimum() {
+        assert!(worth_refining(5.0, None));
+        assert!(worth_refining(1.0, Some(2.0)));
+        assert!(!worth_refining(2.0, Some(2.0)));
+        assert!(!worth_refining(3.0, Some(2.0)));
+    }
 
     /// A constant input is collinear with the equation's constant: the ridge relative to each column keeps the
     /// equations solvable, and what the record determines comes out. y(k) = 0.6 y(k-1) + 2 u(k-1) from rest at

@@ -811,6 +811,23 @@ mod tests {
         assert!(v.rejects);
     }
 
+    /// The clipping rule is strict on the fraction and needs five samples: 10 of 2000 at the maximum (exactly
+    /// 0.5%) is no clipping, 11 is; 4 of 400 (1%) is too few samples, 5 are enough.
+    #[test]
+    fn clipping_is_strictly_above_half_a_percent_and_five_samples() {
+        let clipped = |n: usize, at_max: usize| {
+            let mut y: Vec<f64> = (0..n).map(|k| k as f64).collect();
+            y[n - at_max..].iter_mut().for_each(|v| *v = n as f64);
+            clipping(&y).2
+        };
+        let v = clipped(2000, 10);
+        assert_eq!(v.statistic, 0.005);
+        assert!(!v.rejects);
+        assert!(clipped(2000, 11).rejects);
+        assert!(!clipped(400, 4).rejects);
+        assert!(clipped(400, 5).rejects);
+    }
+
     #[test]
     fn white_band_by_hand() {
         assert!((white_band(100) - 0.195_996_398_454_005_4).abs() < 1e-15);
