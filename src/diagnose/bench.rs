@@ -417,6 +417,7 @@ mod tests {
             let s = scenario(Some(effect), seed, CHECK_N);
             let t = Instant::now();
             let d = run(&s);
+            assert_pointed_by_rejections(&d);
             if !reported && d.effect_id() == Some(effect) {
                 assert_evidence_of(&s, &d, effect_evidence(effect));
                 reported = true;
@@ -437,6 +438,22 @@ mod tests {
             "{effect}: named in {named} of 10\n{}",
             lines.join("\n")
         );
+    }
+
+    /// Every candidate of the first round was pointed to by tests, each of which rejected.
+    fn assert_pointed_by_rejections(d: &Diagnosis) {
+        for c in &d.candidates {
+            assert!(!c.pointed_by.is_empty(), "{}", c.id);
+            for name in &c.pointed_by {
+                assert!(
+                    d.tests
+                        .iter()
+                        .any(|t| t.verdict.name == *name && t.verdict.rejects),
+                    "{} pointed to by {name}, which did not reject",
+                    c.id
+                );
+            }
+        }
     }
 
     /// A phrase of the caption of the evidence figure the report draws for `effect`.
@@ -513,6 +530,7 @@ mod tests {
         for seed in CLEAN_CHECK_SEEDS {
             let s = scenario(None, seed, CHECK_N);
             let d = run(&s);
+            assert_pointed_by_rejections(&d);
             if d.effect_id().is_some() {
                 false_positives.push(line(&s, &d, 0.0));
             } else if seed == CLEAN_CHECK_SEEDS.start {
