@@ -78,7 +78,7 @@ use serde::Serialize;
 
 use super::catalogue::{EffectId, test_names};
 use super::decision::{self, Evidence};
-use super::fit::{LmOptions, bic};
+use super::fit::{LmOptions, bic, cost_of};
 use super::model::{BaseModel, EffectModel, Objective, Simulation};
 pub use super::problem::EXPLORE_SAMPLES;
 use super::problem::{Problem, fit_linear, fit_plain, sim_limit};
@@ -518,7 +518,7 @@ fn extend(p: &Problem, cfg: &DiagnoseConfig, d: &mut Diagnosis) {
         }
         let penalty: f64 = kept.iter().map(|&id| decision::structure_penalty(id)).sum();
         let e: Vec<f64> = p.y.iter().zip(&last.sim.y).map(|(a, b)| a - b).collect();
-        let cost: f64 = e[..p.n_fit].iter().map(|v| v * v).sum();
+        let cost = cost_of(&e[..p.n_fit]);
         let found = find(
             p,
             cfg,
@@ -688,7 +688,7 @@ fn diagnose_from(
         .ok_or(DiagnoseError::NoFit)?;
     p.x_scale = std_dev(&base_sim.x[..n_fit]).max(1e-12);
     let e: Vec<f64> = y.iter().zip(&base_sim.y).map(|(a, b)| a - b).collect();
-    let base_cost: f64 = e[..n_fit].iter().map(|v| v * v).sum();
+    let base_cost = cost_of(&e[..n_fit]);
     let base_k = base.n_estimated();
     let base_bic = bic(base_cost, n_fit, base_k);
     let base_heldout_rmse = rms(e[n_fit..].iter().copied());

@@ -95,11 +95,18 @@ impl<F: Fn(&[f64], &mut Vec<f64>) -> bool + Sync> Residuals for F {
     }
 }
 
-fn cost_of(r: &[f64]) -> f64 {
+/// The sum of squared residuals.
+pub(crate) fn cost_of(r: &[f64]) -> f64 {
     r.iter().map(|v| v * v).sum()
 }
 
-fn evaluate<R: Residuals + ?Sized>(f: &R, theta: &[f64], out: &mut Vec<f64>) -> Option<f64> {
+/// The cost at `theta` (residuals into `out`); `None` when the parameters are not a valid model or the cost
+/// is not finite.
+pub(crate) fn evaluate<R: Residuals + ?Sized>(
+    f: &R,
+    theta: &[f64],
+    out: &mut Vec<f64>,
+) -> Option<f64> {
     out.clear();
     if !f.eval(theta, out) {
         return None;

@@ -15,7 +15,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
-use super::fit::{LmOptions, covariance, levenberg_marquardt};
+use super::fit::{LmOptions, cost_of, covariance, evaluate, levenberg_marquardt};
 use super::model::{
     BaseModel, EffectModel, Extension, Objective, Rest, Simulation, coefficient_scales, is_stable,
 };
@@ -163,7 +163,7 @@ impl<'a> Problem<'a> {
     pub fn cost(&self, m: &EffectModel, obj: Objective) -> Option<f64> {
         let mut out = Vec::with_capacity(self.n_fit);
         let ok = self.residuals(m, obj, self.n_fit, &mut Simulation::default(), &mut out);
-        let c: f64 = out.iter().map(|v| v * v).sum();
+        let c = cost_of(&out);
         (ok && c.is_finite()).then_some(c)
     }
 
@@ -301,12 +301,7 @@ impl<'a> Problem<'a> {
         let mut kept: Vec<&Vec<f64>> = starts.iter().collect();
         if kept.len() > SCREEN_KEEP {
             let mut r = Vec::new();
-            let mut window_cost = |th: &[f64]| {
-                r.clear();
-                window(th, &mut r)
-                    .then(|| r.iter().map(|v| v * v).sum::<f64>())
-                    .filter(|c| c.is_finite())
-            };
+            let mut window_cost = |th: &[f64]| evaluate(&window, th, &mut r);
             let mut scored: Vec<(f64, &Vec<f64>)> = starts
                 .iter()
                 .filter_map(|s| Some((window_cost(s)?, s)))

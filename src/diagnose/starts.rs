@@ -153,7 +153,7 @@ fn coloured_noise(cx: &StartContext) -> Option<Plan> {
     let mut best: Option<(Vec<f64>, f64)> = None;
     for order in 1..=3 {
         let Some(phi) = ar_ls(e, order) else { continue };
-        let rss: f64 = ar_filter(e, &phi).iter().map(|v| v * v).sum();
+        let rss = super::fit::cost_of(&ar_filter(e, &phi));
         let b = super::fit::bic(rss, e.len(), order);
         if best.as_ref().is_none_or(|x| b < x.1) {
             best = Some((phi, b));
