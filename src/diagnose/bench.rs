@@ -538,6 +538,12 @@ mod tests {
             }
             // The paper plant's play (c1 + c2 = 1.5) is plain in every clean record.
             assert!(d.backlash.supported, "{}", d.backlash.verdict);
+            let se = d.backlash.play_se.expect("the gaps are determined");
+            assert!(
+                (d.backlash.play - 1.5).abs() < 4.0 * se,
+                "{seed}: play {} +/- {se}",
+                d.backlash.play
+            );
             assert_eq!(
                 d.effect_id().is_none(),
                 (d.after_rmse() - d.base_heldout_rmse).abs() == 0.0,
