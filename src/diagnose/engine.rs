@@ -869,8 +869,9 @@ struct Findings {
     clip: (f64, f64),
 }
 
-/// The lags the autocorrelation tests use: those asked for, at most a fifth of the fit part, at least one.
-fn usable_lags(lags: usize, n_fit: usize) -> usize {
+/// The lags of the autocorrelation tests and of the report's correlation figures: those asked for, at most a
+/// fifth of the fit part, at least one.
+pub(crate) fn usable_lags(lags: usize, n_fit: usize) -> usize {
     lags.min(n_fit / 5).max(1)
 }
 

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 use super::catalogue::EffectId;
 use super::decision::{DECISION_RULE, structure_penalty};
-use super::engine::{CrossValidation, Diagnosis};
+use super::engine::{CrossValidation, Diagnosis, usable_lags};
 use super::model::Extension;
 use super::residual;
 use crate::io::write_atomic;
@@ -160,7 +160,7 @@ pub fn write_report(
     ));
 
     // Correlation functions on the fit part.
-    let lags = d.config.lags.min(nf / 5).max(1);
+    let lags = usable_lags(d.config.lags, nf);
     let band = residual::white_band(nf);
     let lagx: Vec<f64> = (1..=lags).map(|l| l as f64).collect();
     let lag0: Vec<f64> = (0..=lags).map(|l| l as f64).collect();
@@ -436,7 +436,7 @@ fn evidence(
             ))
         }
         (Some(EffectId::ColouredNoise), Some(Extension::ColouredNoise { phi })) => {
-            let lags = d.config.lags.min(nf / 5).max(1);
+            let lags = usable_lags(d.config.lags, nf);
             let band = residual::white_band(nf);
             let lagx: Vec<f64> = (1..=lags).map(|l| l as f64).collect();
             let acf0 = residual::autocorrelation(&e0[..nf], lags);
@@ -486,7 +486,7 @@ fn evidence(
             ))
         }
         (Some(EffectId::ExtraDelay | EffectId::LinearOrder), _) => {
-            let lags = d.config.lags.min(nf / 5).max(1);
+            let lags = usable_lags(d.config.lags, nf);
             let band = residual::white_band(nf);
             let lag0: Vec<f64> = (0..=lags).map(|l| l as f64).collect();
             let cc0 = residual::cross_correlation(&e0[..nf], &input.u[..nf], lags);
