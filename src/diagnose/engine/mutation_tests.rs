@@ -298,6 +298,25 @@ fn the_budget_and_the_progress_reach_the_rounds() {
             .any(|s| s.starts_with("round 1: fitting the candidates") && !s.contains("(0 of")),
         "{told:?}"
     );
+    // Round 1 tells "k of total done" once for each k from 0 to total (in any order: the fits run on all
+    // cores).
+    let mut done: Vec<(usize, usize)> = told
+        .iter()
+        .filter_map(|s| {
+            let rest = s.strip_prefix("round 1: fitting the candidates")?;
+            let (k, total) = rest
+                .split_once('(')?
+                .1
+                .split_once(" done)")?
+                .0
+                .split_once(" of ")?;
+            Some((k.parse().ok()?, total.parse().ok()?))
+        })
+        .collect();
+    done.sort();
+    let total = done.last().expect("round 1 told").1;
+    assert!(total > 0, "{told:?}");
+    assert_eq!(done, (0..=total).map(|k| (k, total)).collect::<Vec<_>>());
     let (spent, _) = run(Duration::from_micros(1));
     assert!(spent.candidates.is_empty(), "{:?}", spent.candidates);
     assert!(!spent.not_tried.is_empty());
