@@ -206,11 +206,17 @@ pub(crate) fn initial_state(p: &Problem, structures: &[Structure]) -> InitialSta
     }
 }
 
+/// The estimation part's length in a selection window of `n_w` samples: its first two thirds, at least one
+/// sample (the rest validates).
+fn estimation_len(n_w: usize) -> usize {
+    (2 * n_w / 3).max(1)
+}
+
 /// Choose the structure on the fit part of `p` (see the module's documentation). `n_total` is the record's
 /// length (a structure must leave enough samples).
 pub(crate) fn select(p: &Problem, max_delay: usize, n_total: usize) -> StructureChoice {
     let n_w = p.n_fit.min(SELECT_SAMPLES);
-    let n_est = (2 * n_w / 3).max(1);
+    let n_est = estimation_len(n_w);
     let est = p.shortened(n_est);
     let validation = |m: &EffectModel| {
         m.simulate(p.u, p.rest, n_w, p.limit)
@@ -353,6 +359,14 @@ mod tests {
 
     /// The first input wins only when its error is more than 10% below the one from 0, whatever the errors'
     /// scale.
+    #[test]
+    fn the_estimation_part_is_the_first_two_thirds_and_never_empty() {
+        assert_eq!(estimation_len(300), 200);
+        assert_eq!(estimation_len(3000), 2000);
+        assert_eq!(estimation_len(10), 6);
+        assert_eq!(estimation_len(1), 1);
+    }
+
     #[test]
     fn the_first_input_needs_a_tenth_less_error() {
         let clearly_below = |first: f64, zero: f64| below_by(first, zero, REST_MARGIN);
