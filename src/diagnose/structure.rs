@@ -357,8 +357,6 @@ fn decide(c: &[StructureCandidate]) -> (Structure, String) {
 mod tests {
     use super::*;
 
-    /// The first input wins only when its error is more than 10% below the one from 0, whatever the errors'
-    /// scale.
     #[test]
     fn the_estimation_part_is_the_first_two_thirds_and_never_empty() {
         assert_eq!(estimation_len(300), 200);
@@ -367,6 +365,8 @@ mod tests {
         assert_eq!(estimation_len(1), 1);
     }
 
+    /// The first input wins only when its error is more than 10% below the one from 0, whatever the errors'
+    /// scale.
     #[test]
     fn the_first_input_needs_a_tenth_less_error() {
         let clearly_below = |first: f64, zero: f64| below_by(first, zero, REST_MARGIN);
