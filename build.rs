@@ -4,7 +4,8 @@
 //!    (identity, variable table, one enum variant per variable) for `src/fmus`.
 //!    From the same file it writes the FMI 3.0 description (build/fmi3.rs): one hand-kept variable list.
 //! 2. In release builds, packages `target/fmu/<Model>.fmu` (FMI 2.0) and `target/fmu3/<Model>.fmu` (FMI 3.0)
-//!    around one shared library that exports both APIs (see build/package.rs). Set `BACKLASH_FMU=never`
+//!    around one shared library that exports both APIs, built without the default feature `cli` (see
+//!    build/package.rs), for this build's platform only (scripts/dist.sh: every platform in one FMU). Set `BACKLASH_FMU=never`
 //!    to skip packaging, `BACKLASH_FMU=always` to package in debug builds too. On Linux the binary is the
 //!    portable GLIBC 2.17 build when cargo-zigbuild is installed (`BACKLASH_FMU_PORTABLE=never` skips it,
 //!    `=require` fails without it); without it the build warns.
@@ -68,7 +69,7 @@ fn main() {
     if mode == "never" || (!release && mode != "always") {
         return;
     }
-    // The FMU binary is the whole library: rebuild it when any source changes.
+    // The FMU binary is built from the library's sources: rebuild it when any of them changes.
     println!("cargo:rerun-if-changed=src");
     println!("cargo:rerun-if-changed=Cargo.toml");
     println!("cargo:rerun-if-changed=Cargo.lock");

@@ -258,15 +258,19 @@ fn unknown(element: &str, a: &[(String, String)], vrs: &[u32]) -> Result<String,
         "valueReference".to_string(),
         vr_of(get(a, "index").unwrap_or(""))?,
     )];
-    if let Some(deps) = get(a, "dependencies") {
+    // An empty list (FMI 2.0's way to say "no direct feedthrough") is left out: in FMI 3.0 an absent attribute
+    // means "depends on all knowns", harmless for co-simulation, and an empty one crashes importers
+    // (OMSimulator 3.0's fmi4c) before they load the binary.
+    let deps = get(a, "dependencies").filter(|d| !d.trim().is_empty());
+    if let Some(deps) = deps {
         let deps = deps
             .split_whitespace()
             .map(vr_of)
             .collect::<Result<Vec<_>, _>>()?;
         out.push(("dependencies".into(), deps.join(" ")));
-    }
-    if let Some(kinds) = get(a, "dependenciesKind") {
-        out.push(("dependenciesKind".into(), kinds.to_string()));
+        if let Some(kinds) = get(a, "dependenciesKind") {
+            out.push(("dependenciesKind".into(), kinds.to_string()));
+        }
     }
     Ok(tag(element, &out, true))
 }

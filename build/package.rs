@@ -1,9 +1,11 @@
 //! Packages the FMUs: builds this crate's cdylib with a nested cargo and zips it with its description.
 //!
 //! A build script runs before its own crate is compiled, so it cannot see the crate's final shared library.
-//! The way around (as substrate-wasm-builder does) is a nested `cargo build --release --lib` of this same
-//! package into a separate target directory, guarded by the environment variable `BACKLASH_FMU_NESTED`
-//! against recursion. One shared library serves both FMUs in both FMI versions: it exports the fmi2* and the
+//! The way around (as substrate-wasm-builder does) is a nested `cargo build --profile fmu --lib
+//! --no-default-features` of this same package (the FMUs alone: plant, estimators, FMI layers; no plots, FFT or
+//! thread pool) into a separate target directory, guarded by the environment variable `BACKLASH_FMU_NESTED`
+//! against recursion. It builds for this build's target only; scripts/dist.sh builds the same library for the
+//! other platforms and merges them into the same FMUs. One shared library serves both FMUs in both FMI versions: it exports the fmi2* and the
 //! fmi3* functions (disjoint names), and `fmi2Instantiate` / `fmi3InstantiateCoSimulation` pick the model by
 //! GUID (instantiation token). One nested build instead of two, and the two versions cannot drift apart.
 
@@ -77,10 +79,12 @@ impl Platform {
                 ));
             }
         };
+        // FMI 3.0 names the operating systems in full: x86_64-windows, not x86_64-win.
+        let os3 = if os == "windows" { "windows" } else { folder };
         Ok(Self {
             triple: var("TARGET")?,
             folder: format!("{folder}{bits}"),
-            folder3: format!("{arch}-{folder}"),
+            folder3: format!("{arch}-{os3}"),
             cdylib: format!("{prefix}backlash.{extension}"),
             extension,
             glibc: os == "linux" && env == "gnu",
@@ -116,6 +120,8 @@ fn nested(
         .arg("--profile")
         .arg("fmu")
         .arg("--lib")
+        // The FMUs alone: without the feature `cli` (plots, fonts, FFT, thread pool; see Cargo.toml).
+        .arg("--no-default-features")
         .arg("--manifest-path")
         .arg(manifest_dir.join("Cargo.toml"))
         .arg("--target-dir")

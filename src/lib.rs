@@ -11,7 +11,11 @@
 //!   package share it).
 //! - [`io`]: validated CSV reading, atomic writing; [`report`]: PNG plots; [`stats`]: descriptive statistics.
 
+// Without the default feature `cli` the library is the FMUs alone (plant, estimators, FMI layers): what the
+// FMUs' shared library is built from (see Cargo.toml, [features]).
+#[cfg(feature = "cli")]
 pub mod api;
+#[cfg(feature = "cli")]
 pub mod diagnose;
 pub mod fmi2;
 pub mod fmi3;
@@ -19,6 +23,7 @@ pub mod fmus;
 pub mod identify;
 pub mod io;
 pub mod plant;
+#[cfg(feature = "cli")]
 pub mod report;
 pub mod stats;
 

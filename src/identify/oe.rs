@@ -130,10 +130,12 @@
 //! - Records shorter than p + 1 samples, mismatched lengths and non-finite samples are refused.
 
 pub mod online;
+#[cfg(feature = "cli")]
 mod study;
 #[cfg(test)]
 mod tests;
 
+#[cfg(feature = "cli")]
 pub use study::{
     GridConfig, GridResult, METHODS, MethodStats, PLANT_VARIANTS, PlantVariant, ROWS_HEADER, Row,
     StudyConfig, StudyError, StudyResult, grid_study, monte_carlo, plant_variant,
@@ -980,6 +982,19 @@ fn check_record(cfg: &OeConfig, u: &[f64], y: &[f64]) -> Result<(), OeError> {
     check_finite("y", y)
 }
 
+/// The starts of [`fit`] from the two MRGIA estimates.
+fn default_starts(rec: Estimate, paper: Option<Estimate>) -> Vec<(&'static str, Estimate)> {
+    let mut starts = vec![("mrgia-recommended", rec.clone())];
+    if let Some(paper) = paper {
+        starts.push(("mrgia-paper", paper));
+        let mut half = rec;
+        half.c1 *= 0.5;
+        half.c2 *= 0.5;
+        starts.push(("mrgia-recommended-half-gaps", half));
+    }
+    starts
+}
+
 /// Output-error fit started from MRGIA's estimate(s) over the same record (module docs).
 pub fn fit(cfg: &OeConfig, u: &[f64], y: &[f64]) -> Result<OeFit, OeError> {
     check_record(cfg, u, y)?;
@@ -990,7 +1005,7 @@ pub fn fit(cfg: &OeConfig, u: &[f64], y: &[f64]) -> Result<OeFit, OeError> {
     } else {
         None
     };
-    fit_from(cfg, u, y, &study::default_starts(rec, paper))
+    fit_from(cfg, u, y, &default_starts(rec, paper))
 }
 
 /// Output-error fit from given starting points (name, estimate), keeping the lowest cost. The estimates

@@ -27,6 +27,20 @@ use plotters::coord::Shift;
 use plotters::coord::ranged1d::{AsRangedCoord, Ranged, ValueFormatter};
 use plotters::prelude::*;
 
+/// The plots' one font, DejaVu Sans (its licence: assets/fonts/LICENSE-DejaVu.txt), inside the binary: text looks
+/// the same everywhere, and neither the program nor the Python extension links the system's font libraries
+/// (fontconfig, freetype), so that the wheel is manylinux2014.
+const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+
+/// Registers [`FONT`] as plotters' "sans-serif" (once per process), before anything is drawn.
+fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        // The bundled file parses (checked by the test `the_bundled_font_registers`).
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+}
+
 /// Size of a single-panel plot, pixels.
 pub const SINGLE_SIZE: (u32, u32) = (1000, 600);
 /// Size of one panel in a grid, pixels.
@@ -174,6 +188,7 @@ pub fn line_plot(
         log_y: axes.y == Scale::Log,
     };
     check_folder(path)?;
+    register_font();
     let root = BitMapBackend::new(path, SINGLE_SIZE).into_drawing_area();
     let err = |e: String| PlotError::Draw {
         path: path.to_path_buf(),
@@ -204,6 +219,7 @@ pub fn grid_plot(
         PANEL_SIZE.0 * cols as u32,
         PANEL_SIZE.1 * rows as u32 + title_h,
     );
+    register_font();
     let root = BitMapBackend::new(path, size).into_drawing_area();
     let err = |e: String| PlotError::Draw {
         path: path.to_path_buf(),
@@ -624,6 +640,11 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_bundled_font_registers() {
+        assert!(plotters::style::register_font("bundled", FontStyle::Normal, FONT).is_ok());
+    }
+
+    #[test]
     fn thinned_log_labels_keep_1_2_3_5() {
         let log = TickLabels::of(&(250.0..12000.0), true);
         assert!(log.thin);
@@ -734,6 +755,7 @@ mod tests {
     /// RGB pixels of `panel` drawn on a white `size` canvas as [`line_plot`] and [`grid_plot`] draw it.
     fn render(panel: &Panel, size: (u32, u32)) -> Vec<u8> {
         let mut buf = vec![0u8; 3 * (size.0 * size.1) as usize];
+        super::register_font();
         {
             let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
             root.fill(&WHITE).unwrap();
