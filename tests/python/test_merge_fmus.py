@@ -66,3 +66,23 @@ def test_conflicting_binaries_are_refused(plant_fmu, tmp_path):
     r = merge(tmp_path / "out.fmu", plant_fmu, other)
     assert r.returncode == 1
     assert "binary binaries/linux64/BacklashPlant.so differs" in r.stderr
+
+
+def test_binary_option_adds_a_platform_in_a_new_folder(plant_fmu, tmp_path):
+    """`--binary FOLDER=FILE` (scripts/dist.sh) names the file after the modelIdentifier and the platform's
+    extension; the output's folder is created; an occupied folder or a malformed spec is refused."""
+    dll = tmp_path / "backlash.dll"
+    dll.write_bytes(b"MZ not really a DLL")
+    out = tmp_path / "new" / "folder" / "BacklashPlant.fmu"
+    r = subprocess.run([sys.executable, str(SCRIPT), str(out), str(plant_fmu), "--binary", f"win64={dll}"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    with zipfile.ZipFile(out) as z:
+        assert z.read("binaries/win64/BacklashPlant.dll") == dll.read_bytes()
+    for spec, words in [(f"linux64={dll}", "already have binaries/linux64/BacklashPlant.so"),
+                        ("win64", "expected FOLDER=FILE")]:
+        bad = tmp_path / "bad.fmu"
+        r = subprocess.run([sys.executable, str(SCRIPT), str(bad), str(plant_fmu), "--binary", spec],
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 1 and words in r.stderr, r.stderr
+        assert not bad.exists()

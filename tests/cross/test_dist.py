@@ -1,0 +1,105 @@
+"""The release FMUs of scripts/dist.sh, read as files: platforms, FMPy validation, and each binary's links.
+
+- Each FMU carries exactly the platforms CONTRACT.md promises, one binary per platform, the same shared library
+  in both models, and passes `fmpy.validation.validate_fmu`.
+- The Windows DLL imports only DLLs every Windows (10 and later) has: no libgcc_s, libwinpthread or other
+  mingw runtime beside it. Its import table is read with x86_64-w64-mingw32-objdump.
+- The Linux binaries need no GLIBC symbol newer than 2.17, carry no debug information and no symbol table.
+- Every platform exports the same fmi2*/fmi3* functions.
+"""
+import re
+import subprocess
+import zipfile
+
+import pytest
+from elftools.elf.elffile import ELFFile
+from elftools.elf.gnuversions import GNUVerNeedSection
+
+from dist_fmus import dist_fmu
+
+MODELS = ["BacklashPlant", "MrgiaEstimator"]
+PLATFORMS = {2: ["linux64", "win64"], 3: ["aarch64-linux", "x86_64-linux", "x86_64-windows"]}
+
+# DLLs that come with every Windows from 10 on (the API sets resolve inside Windows itself).
+SYSTEM_DLLS = {"kernel32.dll", "ntdll.dll", "msvcrt.dll", "userenv.dll", "ws2_32.dll", "advapi32.dll",
+               "bcrypt.dll", "bcryptprimitives.dll", "ucrtbase.dll", "shell32.dll", "ole32.dll"}
+
+
+def binaries(version, model):
+    """{platform folder: bytes} of the FMU's binaries."""
+    with zipfile.ZipFile(dist_fmu(version, model)) as z:
+        return {n.split("/")[1]: z.read(n) for n in z.namelist() if n.startswith("binaries/") and not n.endswith("/")}
+
+
+@pytest.mark.parametrize("version", [2, 3])
+@pytest.mark.parametrize("model", MODELS)
+def test_platforms_and_validation(version, model):
+    from fmpy.validation import validate_fmu
+
+    bins = binaries(version, model)
+    assert sorted(bins) == PLATFORMS[version]
+    assert bins == binaries(version, MODELS[0]), "both models carry the same shared library"
+    assert validate_fmu(str(dist_fmu(version, model))) == []
+
+
+@pytest.fixture(scope="module")
+def libs(tmp_path_factory):
+    """The FMI 3.0 plant's binaries, written out: {platform: path}."""
+    out = tmp_path_factory.mktemp("dist-binaries")
+    paths = {}
+    for folder, data in binaries(3, "BacklashPlant").items():
+        p = out / folder
+        p.write_bytes(data)
+        paths[folder] = p
+    return paths
+
+
+def pe_imports(path):
+    dump = subprocess.run(["x86_64-w64-mingw32-objdump", "-p", str(path)], capture_output=True, text=True,
+                          check=True).stdout
+    return dump, {m.lower() for m in re.findall(r"DLL Name: (\S+)", dump)}
+
+
+def test_windows_dll_imports_only_what_every_windows_has(libs):
+    dump, dlls = pe_imports(libs["x86_64-windows"])
+    assert "kernel32.dll" in dlls, dump[:3000]
+    foreign = {d for d in dlls if d not in SYSTEM_DLLS and not d.startswith("api-ms-win-")}
+    assert not foreign, f"the DLL needs {sorted(foreign)}, which Windows does not have"
+
+
+def test_windows_dll_has_no_debug_information(libs):
+    heads = subprocess.run(["x86_64-w64-mingw32-objdump", "-h", str(libs["x86_64-windows"])], capture_output=True,
+                           text=True, check=True).stdout
+    assert ".debug_" not in heads and ".symtab" not in heads, heads
+
+
+@pytest.mark.parametrize("platform", ["x86_64-linux", "aarch64-linux"])
+def test_linux_binaries_need_glibc_2_17_and_carry_no_debug_information(libs, platform):
+    with open(libs[platform], "rb") as f:
+        elf = ELFFile(f)
+        assert elf["e_machine"] == {"x86_64-linux": "EM_X86_64", "aarch64-linux": "EM_AARCH64"}[platform]
+        names = [s.name for s in elf.iter_sections()]
+        assert not [n for n in names if n.startswith(".debug_") or n == ".symtab"], names
+        versions = set()
+        for sec in elf.iter_sections():
+            if isinstance(sec, GNUVerNeedSection):
+                for _, auxes in sec.iter_versions():
+                    versions |= {a.name for a in auxes if a.name.startswith("GLIBC_")}
+    newest = max(tuple(int(x) for x in v[6:].split(".")) for v in versions)
+    assert newest <= (2, 17), f"{platform} needs GLIBC {'.'.join(map(str, newest))}"
+
+
+def elf_exports(path):
+    with open(path, "rb") as f:
+        dynsym = ELFFile(f).get_section_by_name(".dynsym")
+        return {s.name for s in dynsym.iter_symbols() if s.name.startswith("fmi") and s["st_shndx"] != "SHN_UNDEF"}
+
+
+def test_every_platform_exports_the_same_fmi_functions(libs):
+    linux = elf_exports(libs["x86_64-linux"])
+    assert any(n.startswith("fmi2") for n in linux) and any(n.startswith("fmi3") for n in linux)
+    assert elf_exports(libs["aarch64-linux"]) == linux
+    dump, _ = pe_imports(libs["x86_64-windows"])
+    table = dump.split("[Ordinal/Name Pointer] Table", 1)[1]
+    windows = set(re.findall(r"\]\s+(fmi\w+)", table))
+    assert windows == linux
