@@ -18,7 +18,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 
 use backlash::diagnose::bench::{Scenario, scenario};
-use backlash::diagnose::catalogue::EffectId;
+use backlash::diagnose::effects::EffectId;
 use backlash::diagnose::engine::{DiagnoseConfig, Diagnosis, diagnose};
 use backlash::diagnose::record::decimate;
 use backlash::io::Table;
@@ -104,7 +104,7 @@ fn parse_seeds(text: &str) -> Result<Range<u64>> {
 fn parse_effects(list: Option<&str>) -> Result<Vec<Option<EffectId>>> {
     let Some(list) = list else {
         return Ok(std::iter::once(None)
-            .chain(EffectId::ALL.map(Some))
+            .chain(EffectId::all().map(Some))
             .collect());
     };
     list.split(',')

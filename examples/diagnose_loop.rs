@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use backlash::diagnose::bench::{Scenario, names, scenario_with};
-use backlash::diagnose::catalogue::EffectId;
+use backlash::diagnose::effects::EffectId;
 use backlash::diagnose::engine::{DiagnoseConfig, Diagnosis, diagnose};
 
 /// What one record showed.

@@ -5,7 +5,7 @@
 //! is still named `periodic-disturbance`.
 
 use backlash::diagnose::bench;
-use backlash::diagnose::catalogue::EffectId;
+use backlash::diagnose::effects;
 use backlash::diagnose::engine::{DiagnoseConfig, Diagnosis, diagnose};
 use backlash::identify::mrgia::paper_input;
 use backlash::plant::PlantParams;
@@ -84,7 +84,7 @@ fn not_periodic(u: &[f64], y: &[f64], what: &str) -> Diagnosis {
     let d = diagnose(u, y, &DiagnoseConfig::new(2, 0, 1)).expect("diagnosis runs");
     assert_ne!(
         d.effect_id(),
-        Some(EffectId::PeriodicDisturbance),
+        Some(effects::periodic::ID),
         "{what}: {}",
         explain(&d)
     );
@@ -109,7 +109,7 @@ fn periodic_input_and_curved_borders_is_not_a_periodic_disturbance() {
     let d = not_periodic(&u, &y, "repeated trajectory");
     assert_eq!(
         d.effect_id(),
-        Some(EffectId::CurvedBorders),
+        Some(effects::curved_borders::ID),
         "{}",
         explain(&d)
     );
@@ -126,7 +126,7 @@ fn periodic_input_and_a_longer_linear_order_is_not_a_periodic_disturbance() {
     let d = not_periodic(&u, &y, "repeated trajectory");
     assert_eq!(
         d.effect_id(),
-        Some(EffectId::LinearOrder),
+        Some(effects::linear_order::ID),
         "{}",
         explain(&d)
     );
@@ -134,12 +134,12 @@ fn periodic_input_and_a_longer_linear_order_is_not_a_periodic_disturbance() {
 #[test]
 fn a_disturbance_the_input_does_not_carry_is_still_named() {
     for seed in [10_000, 10_001, 10_002] {
-        let s = bench::scenario(Some(EffectId::PeriodicDisturbance), seed, N);
+        let s = bench::scenario(Some(effects::periodic::ID), seed, N);
         let (na, nb, delay) = s.declared;
         let d = diagnose(&s.u, &s.y, &DiagnoseConfig::new(na, nb, delay)).expect("diagnosis runs");
         assert_eq!(
             d.effect_id(),
-            Some(EffectId::PeriodicDisturbance),
+            Some(effects::periodic::ID),
             "seed {seed} ({}): {}",
             s.description,
             explain(&d)

@@ -1,18 +1,28 @@
-//! Diagnosis: from a fitted model's residual to the effect the model lacks.
+//! Diagnosis: from a fitted model's residual to the effects the model lacks, in rooms by job.
 //!
-//! - [`residual`]: the statistical tests that trace a residual to its cause.
+//! - [`effects`]: the open catalogue, one module per effect behind one trait, registered in one list.
+//! - [`search`]: the loop (engine and decision rule).
+//! - [`fit`]: models, problems, starts, structure selection and the Levenberg-Marquardt fitter.
+//! - [`residual`]: the residual tests and the statistics they and the decision use.
+//! - [`report`]: the Markdown report with its figures and the typed JSON output.
+//! - [`bench`]: simulated test-bench records with known effects (tests and measurements).
+//! - [`record`]: decimation of densely sampled records.
+//!
+//! Rooms depend one way: `residual` and `fit` know no effect; `effects` uses them; `search` uses the
+//! catalogue only through its trait; `report` comes last.
 
 pub mod bench;
-pub mod catalogue;
-pub mod decision;
-pub mod engine;
+pub mod effects;
 pub mod fit;
-pub mod model;
-pub mod output;
-pub mod problem;
+pub mod id;
 pub mod record;
 pub mod report;
 pub mod residual;
-pub mod starts;
-pub mod statistics;
-pub mod structure;
+pub mod search;
+
+/// Structure selection, as the command line and the Python binding name it.
+pub use fit::structure;
+/// The JSON output, as the library's API names it.
+pub use report::output;
+/// The engine, as the command line and the Python binding name it.
+pub use search::engine;

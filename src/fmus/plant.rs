@@ -4,8 +4,8 @@ use super::backlash_plant::{self as md, Var};
 use crate::fmi2::Model;
 use crate::fmi2::vars::{Value, VarInfo};
 use crate::plant::effects::{
-    ColouredNoise, CurvedBorders, DirectionDependent, Effects, Friction, FrictionForm, GapDrift,
-    Periodic, Quantization, Saturation,
+    ColouredNoise, CurvedBorders, DeadZone, DirectionDependent, Effects, Friction, FrictionForm,
+    GapDrift, Periodic, Quantization, Saturation,
 };
 use crate::plant::{
     MAX_ORDER, Plant, PlantExtensions, PlantOutput, PlantParams, PolyBacklashParams,
@@ -38,7 +38,8 @@ pub struct PlantFmu {
 }
 
 /// The test-bench parameters of the FMU. Each effect is off at its default: zero rates, straight curves,
-/// `friction = 0`, zero amplitude, `noise_phi = 0`, `saturation = 0`, `quant_step = 0`.
+/// `friction = 0`, zero amplitude, `noise_phi = 0`, `saturation = 0`, `quant_step = 0`,
+/// `dead_zone = 0`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 struct Bench {
     c_rate: [f64; 2],
@@ -58,6 +59,9 @@ struct Bench {
     fall_a: [f64; MAX_ORDER],
     /// b0_fall..b4_fall.
     fall_b: [f64; MAX_ORDER + 1],
+    /// Width of the input dead zone (0: off).
+    #[serde(default)]
+    dead_zone: f64,
 }
 
 impl Bench {
@@ -76,6 +80,7 @@ impl Bench {
         direction_dependent: 0,
         fall_a: [0.0; MAX_ORDER],
         fall_b: [0.0; MAX_ORDER + 1],
+        dead_zone: 0.0,
     };
 
     /// The library's effects, with rates and frequencies per sample of period `ts`. The layer has checked
@@ -163,6 +168,11 @@ impl Bench {
                 lo: self.sat[0],
                 hi: self.sat[1],
                 before_noise,
+            });
+        }
+        if self.dead_zone != 0.0 {
+            e.dead_zone = Some(DeadZone {
+                width: self.dead_zone,
             });
         }
         if self.quant[0] != 0.0 {
@@ -370,6 +380,7 @@ impl Model for PlantFmu {
             Var::B2Fall => r(b.fall_b[2]),
             Var::B3Fall => r(b.fall_b[3]),
             Var::B4Fall => r(b.fall_b[4]),
+            Var::DeadZone => r(b.dead_zone),
         }
     }
 
@@ -456,6 +467,7 @@ impl Model for PlantFmu {
             Var::B2Fall => self.bench.fall_b[2] = x,
             Var::B3Fall => self.bench.fall_b[3] = x,
             Var::B4Fall => self.bench.fall_b[4] = x,
+            Var::DeadZone => self.bench.dead_zone = x,
             // Outputs: the layer refuses to set them before calling here.
             Var::Y | Var::W | Var::X | Var::F => {}
         }

@@ -9,6 +9,7 @@
 //! Signal path at sample k (x from the ARX block, as in the contract):
 //!
 //! ```text
+//! u(k) -> actuator dead zone                            -> the linear block's input (= u(k) without it)
 //! x(k) -> backlash with drifting gaps and curved borders -> w(k)
 //!      -> friction element (elasto-plastic Coulomb)     -> f(k)   (= w(k) without friction)
 //!      -> sensor: f + periodic disturbance + noise (white or AR(1)), clipped, rounded -> y(k)
@@ -23,6 +24,7 @@
 //! | coloured-noise | [`ColouredNoise`] | `phi`: AR(1) coefficient of the measurement noise | sensor |
 //! | saturation | [`Saturation`] | `lo`, `hi`, `before_noise` | sensor (or end stop) |
 //! | quantization | [`Quantization`] | `step`, `offset` | sensor (last) |
+//! | dead-zone | [`DeadZone`] | `width`: inputs with \|u\| up to it move nothing | actuator (before the linear block) |
 //! | direction-dependent | [`DirectionDependent`] | the falling set `a`, `b` of the linear block | linear block |
 //! | extra-delay | none: `ArxParams::delay` | | linear block |
 //! | linear-order | none: `ArxParams::na`, `nb` and coefficients | | linear block |
@@ -190,10 +192,32 @@ impl DirectionDependent {
     }
 }
 
+/// An actuator or valve dead zone on the input: an input with |u| up to `width` moves nothing; a larger one
+/// acts shifted towards zero by the width, `u - width sign(u)` ([`DeadZone::apply`]). Width 0 is the plain
+/// input.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DeadZone {
+    pub width: f64,
+}
+
+impl DeadZone {
+    /// The input the linear block sees for the commanded input `u`.
+    pub fn apply(&self, u: f64) -> f64 {
+        if u > self.width {
+            u - self.width
+        } else if u < -self.width {
+            u + self.width
+        } else {
+            0.0
+        }
+    }
+}
+
 /// The optional effects; `Default` switches all of them off.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 #[serde(default)]
 pub struct Effects {
+    pub dead_zone: Option<DeadZone>,
     pub direction_dependent: Option<DirectionDependent>,
     pub gap_drift: Option<GapDrift>,
     pub curved_borders: Option<CurvedBorders>,
@@ -207,6 +231,9 @@ pub struct Effects {
 impl Effects {
     /// Every enabled effect's parameters in range; the error names the first bad one.
     pub fn validate(&self) -> Result<(), ParamError> {
+        if let Some(d) = &self.dead_zone {
+            check_non_negative("width", d.width)?;
+        }
         if let Some(d) = &self.direction_dependent {
             for (i, v) in d.a.iter().enumerate() {
                 check_finite(&format!("a{}_fall", i + 1), *v)?;
@@ -269,6 +296,22 @@ impl Effects {
             check_finite("offset", q.offset)?;
         }
         Ok(())
+    }
+}
+
+impl Effects {
+    /// The input the linear block sees for the commanded input `u`: the actuator's effects (the dead zone)
+    /// act on it; without them it is `u`.
+    pub fn actuator(&self, u: f64) -> f64 {
+        match &self.dead_zone {
+            Some(d) => d.apply(u),
+            None => u,
+        }
+    }
+
+    /// Whether an actuator effect changes the input ([`Effects::actuator`] is not the identity).
+    pub fn acts_on_input(&self) -> bool {
+        self.dead_zone.is_some()
     }
 }
 

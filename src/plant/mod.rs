@@ -444,6 +444,11 @@ impl Plant {
 
     /// Take u(k) and move to sample k + 1.
     pub fn advance(&mut self, u_k: f64) {
+        // The actuator's effects (a dead zone) act on the input before the linear block.
+        let u_k = match &self.effects {
+            Some((e, _)) => e.actuator(u_k),
+            None => u_k,
+        };
         self.linear.push(u_k, self.out.x);
         self.k += 1;
         self.out = self.compute(self.out.w);

@@ -1,6 +1,11 @@
 //! Each effect's draw is what its description says, inside the ranges the bench documents.
 
 use super::*;
+use crate::diagnose::effects::linear_order::stable;
+use crate::diagnose::effects::{
+    coloured_noise, direction_dependent, extra_delay, friction, gap_drift, linear_order, periodic,
+    quantization, saturation,
+};
 
 const SEEDS: std::ops::Range<u64> = 0..6;
 const N: usize = 300;
@@ -30,7 +35,7 @@ fn direction_dependent_scales_the_poles_and_keeps_the_gain() {
     let paper = PlantParams::PAPER.arx;
     let gain = |a: &[f64], b: &[f64]| b.iter().sum::<f64>() / (1.0 + a.iter().sum::<f64>());
     for seed in SEEDS {
-        let s = scenario(Some(EffectId::DirectionDependent), seed, N);
+        let s = scenario(Some(direction_dependent::ID), seed, N);
         let fall = s.effects.direction_dependent.as_ref().expect("drawn");
         let r = fall.a[0] / paper.a[0];
         assert!((0.4..=0.7).contains(&r), "{seed}: {r}");
@@ -47,7 +52,7 @@ fn direction_dependent_scales_the_poles_and_keeps_the_gain() {
 fn extra_delay_adds_one_to_three_samples() {
     let mut seen = [false; 3];
     for seed in 0..30 {
-        let s = scenario(Some(EffectId::ExtraDelay), seed, N);
+        let s = scenario(Some(extra_delay::ID), seed, N);
         let extra = s.params.arx.delay - PlantParams::PAPER.arx.delay;
         assert!((1..=3).contains(&extra), "{seed}: {extra}");
         seen[extra - 1] = true;
@@ -64,7 +69,7 @@ fn linear_order_adds_a_stable_a3_or_a_proportional_b1() {
     let paper = PlantParams::PAPER.arx;
     let (mut with_a3, mut with_b1) = (0, 0);
     for seed in 0..20 {
-        let s = scenario(Some(EffectId::LinearOrder), seed, N);
+        let s = scenario(Some(linear_order::ID), seed, N);
         let arx = s.params.arx;
         if arx.na == 3 {
             with_a3 += 1;
@@ -85,7 +90,7 @@ fn linear_order_adds_a_stable_a3_or_a_proportional_b1() {
 #[test]
 fn saturation_clips_at_the_described_quantiles() {
     for seed in SEEDS {
-        let s = scenario(Some(EffectId::Saturation), seed, N);
+        let s = scenario(Some(saturation::ID), seed, N);
         let w0 = clean_w(&s);
         let sat = s.effects.saturation.as_ref().expect("drawn");
         let below = |v: f64| w0.iter().filter(|w| **w < v).count() as f64 / N as f64;
@@ -118,7 +123,7 @@ fn saturation_clips_at_the_described_quantiles() {
 #[test]
 fn periodic_disturbance_is_a_multiple_of_the_noise() {
     for seed in SEEDS {
-        let s = scenario(Some(EffectId::PeriodicDisturbance), seed, N);
+        let s = scenario(Some(periodic::ID), seed, N);
         let p = s.effects.periodic.as_ref().expect("drawn");
         let snr = std_dev(&s.f) / s.params.noise_std;
         // The noise is set from the noise-free output's spread; the amplitude from w's (the clean backlash
@@ -137,7 +142,7 @@ fn periodic_disturbance_is_a_multiple_of_the_noise() {
 fn periodic_phases_cover_the_circle() {
     let mut quarters = [false; 4];
     for seed in 0..40 {
-        let s = scenario(Some(EffectId::PeriodicDisturbance), seed, 50);
+        let s = scenario(Some(periodic::ID), seed, 50);
         let phase = s.effects.periodic.as_ref().expect("drawn").phase;
         assert!(
             (0.0..2.0 * std::f64::consts::PI).contains(&phase),
@@ -151,7 +156,7 @@ fn periodic_phases_cover_the_circle() {
 #[test]
 fn quantization_step_and_noise_follow_the_description() {
     for seed in SEEDS {
-        let s = scenario(Some(EffectId::Quantization), seed, N);
+        let s = scenario(Some(quantization::ID), seed, N);
         let q = s.effects.quantization.as_ref().expect("drawn");
         let rel = q.step / std_dev(&clean_w(&s));
         assert!((0.1..=0.3).contains(&rel), "{seed}: {rel}");
@@ -166,7 +171,7 @@ fn quantization_step_and_noise_follow_the_description() {
 #[test]
 fn coloured_noise_is_ar1_at_a_lower_snr() {
     for seed in SEEDS {
-        let s = scenario(Some(EffectId::ColouredNoise), seed, N);
+        let s = scenario(Some(coloured_noise::ID), seed, N);
         let phi = s.effects.coloured_noise.as_ref().expect("drawn").phi;
         assert!((0.5..=0.9).contains(&phi), "{seed}");
         let snr = std_dev(&s.f) / s.params.noise_std;
@@ -178,7 +183,7 @@ fn coloured_noise_is_ar1_at_a_lower_snr() {
 #[test]
 fn gap_drift_rates_are_positive_fractions_of_the_gaps() {
     for seed in SEEDS {
-        let s = scenario(Some(EffectId::GapDrift), seed, N);
+        let s = scenario(Some(gap_drift::ID), seed, N);
         let g = s.effects.gap_drift.as_ref().expect("drawn");
         let bl = PlantParams::PAPER.backlash;
         for (rate, c) in [(g.c1_rate, bl.c1), (g.c2_rate, bl.c2)] {
@@ -193,7 +198,7 @@ fn gap_drift_rates_are_positive_fractions_of_the_gaps() {
 #[test]
 fn friction_slips_within_the_elastic_range() {
     for seed in SEEDS {
-        let s = scenario(Some(EffectId::Friction), seed, N);
+        let s = scenario(Some(friction::ID), seed, N);
         let (lo, hi) = clean_w(&s)
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {

@@ -1,7 +1,7 @@
 //! Fitting models on a record: the fit part, its exploration window, the linear model and the plain
 //! backlash model with their starts. The strategy of every fit (`Problem::fit`): screen many starts by
 //! their cost on the exploration window, run short fits from the best few there, refine the best on the
-//! whole fit part (which, with the statistical stopping rule of [`super::fit`], takes a few iterations).
+//! whole fit part (which, with the statistical stopping rule of [`crate::diagnose::fit::lm`], takes a few iterations).
 
 use std::cell::RefCell;
 
@@ -15,11 +15,11 @@ use rand_chacha::ChaCha8Rng;
 use rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
-use super::fit::{LmOptions, cost_of, covariance, evaluate, levenberg_marquardt};
-use super::model::{
-    BaseModel, EffectModel, Extension, Objective, Rest, Simulation, coefficient_scales, is_stable,
+use crate::diagnose::fit::lm::{LmOptions, cost_of, covariance, evaluate, levenberg_marquardt};
+use crate::diagnose::fit::model::{
+    BaseModel, EffectModel, Objective, Rest, Scales, Simulation, coefficient_scales, is_stable,
 };
-use super::structure::Structure;
+use crate::diagnose::fit::structure::Structure;
 use crate::identify::mrgia::{Mrgia, MrgiaConfig};
 use crate::stats::std_dev;
 
@@ -61,6 +61,8 @@ pub(crate) struct Problem<'a> {
     pub time_scale: f64,
     pub y_scale: f64,
     pub x_scale: f64,
+    /// The input's scale on the fit part (its standard deviation, at least 1e-12).
+    pub u_scale: f64,
     pub lm: LmOptions,
     /// Told what the diagnosis is doing, stage by stage (a progress display; may be called from any thread).
     pub progress: &'a (dyn Fn(&str) + Sync),
@@ -81,6 +83,7 @@ impl<'a> Problem<'a> {
             time_scale: n_fit as f64,
             y_scale,
             x_scale: y_scale,
+            u_scale: std_dev(&u[..n_fit]).max(1e-12),
             lm,
             progress: &|_| {},
         }
@@ -167,37 +170,20 @@ impl<'a> Problem<'a> {
         (ok && c.is_finite()).then_some(c)
     }
 
-    /// Typical magnitudes of the packed parameters of `m`.
+    /// Typical magnitudes of the packed parameters of `m`: the base model's, then each extension's as its
+    /// element gives them from the data's scales.
     fn typical(&self, m: &EffectModel) -> Vec<f64> {
+        let scales = Scales {
+            y: self.y_scale,
+            x: self.x_scale.max(1e-12),
+            u: self.u_scale,
+            n_fit: self.n_fit,
+        };
         let mut t = m.base.typical(self.y_scale);
         for e in &m.exts {
-            t.extend(self.typical_ext(e));
+            t.extend(e.element.typical(e, &scales));
         }
         t
-    }
-
-    /// Typical magnitudes of an extension's packed parameters.
-    fn typical_ext(&self, e: &Extension) -> Vec<f64> {
-        let ys = self.y_scale;
-        let xs = self.x_scale.max(1e-12);
-        match e {
-            Extension::None => vec![],
-            Extension::Quantization { step, .. } => vec![0.1 * step],
-            Extension::GapDrift { .. } => vec![0.1 * ys; 2],
-            Extension::CurvedBorders { .. } => {
-                vec![
-                    0.1 * ys / (xs * xs),
-                    0.1 * ys / (xs * xs * xs),
-                    0.1 * ys / (xs * xs),
-                    0.1 * ys / (xs * xs * xs),
-                ]
-            }
-            Extension::Saturation { .. } | Extension::Friction { .. } => vec![ys; 2],
-            Extension::Periodic { .. } => vec![1.0 / self.n_fit as f64, 0.1 * ys, 0.1 * ys],
-            Extension::ColouredNoise { phi } => vec![0.5; phi.len()],
-            // The base model's magnitudes for its coefficients ([`BaseModel::typical`]).
-            Extension::DirectionDependent { a, b } => coefficient_scales(a.len(), b, 0.0),
-        }
     }
 
     /// Fit `template`'s structure from `starts`. Returns the model and its fit-part cost.
@@ -763,7 +749,7 @@ mod tests {
     #[test]
     fn plain_starts_by_hand() {
         let n = 400;
-        let u = crate::diagnose::model::tests::input(n);
+        let u = crate::diagnose::fit::model::tests::input(n);
         let y: Vec<f64> = (0..n)
             .map(|k| if k == 0 { 3.0 } else { 2.0 * u[k - 1] + 3.0 })
             .collect();

@@ -1,33 +1,5 @@
-//! Tests that pin behaviour a mutation sample found unchecked.
-
 use super::*;
-
-/// The figures' curves pair each x with its y, in order, one point per sample (a curve of one point would
-/// draw nothing the reader can check).
-#[test]
-fn points_pair_every_sample_in_order() {
-    let got = pts(&[0.5, 1.5, 2.5], &[-1.0, 4.0, 9.0]);
-    assert_eq!(got, vec![(0.5, -1.0), (1.5, 4.0), (2.5, 9.0)]);
-}
-
-/// A border's fitted curve spans exactly the x its samples cover, in 100 equal steps, with the curvature's
-/// value at each x; no samples, no curve.
-#[test]
-fn border_curve_spans_the_samples() {
-    let samples = [(3.0, 0.1), (-1.0, 0.2), (1.0, -0.3)];
-    let got = border_curve(&[2.0, 0.5], 1.0, &samples);
-    assert_eq!(got.len(), 101);
-    assert_eq!(got[0].0, -1.0);
-    assert_eq!(got[50].0, 1.0);
-    assert_eq!(got[100].0, 3.0);
-    assert!(
-        got.windows(2)
-            .all(|w| (w[1].0 - w[0].0 - 0.04).abs() < 1e-12)
-    );
-    // At x = 1: s = 2, s^2 (2 + 0.5 s) = 4 * 3 = 12.
-    assert!((got[50].1 - 12.0).abs() < 1e-12);
-    assert!(border_curve(&[2.0, 0.5], 1.0, &[]).is_empty());
-}
+use crate::diagnose::fit::starts::tests::{context, paper};
 
 /// Running means over windows of the given samples, at the middle sample's time: windows of 8 step by 2.
 #[test]
@@ -69,4 +41,24 @@ fn border_drift_lines_and_centring_by_hand() {
         c,
         vec![(0.0, 10.75), (1.0, 10.25), (2.0, 9.75), (3.0, 9.25)]
     );
+}
+
+/// The rates start at zero, on the current model; they pack scaled by the time scale (a total drift).
+#[test]
+fn starts_at_the_current_model_and_packs_a_total_drift() {
+    let m = paper();
+    let y = vec![0.0; 10];
+    let p = GapDrift.plan(&context(&m, &y, &y, &y)).unwrap();
+    assert_eq!(p.alternatives[0].starts[0].exts, vec![extension(0.0, 0.0)]);
+    let e = extension(1e-4, -2e-4);
+    assert_eq!(e.pack(1000.0), vec![0.1, -0.2]);
+    let back = e.unpack(&[0.1, -0.2], 1000.0);
+    assert!((back.theta[0] - 1e-4).abs() < 1e-18 && (back.theta[1] + 2e-4).abs() < 1e-18);
+}
+
+/// Named in at least 9 of 10 held-out test-bench records, the held-out error falling in each, with its
+/// evidence figure in the report.
+#[test]
+fn named_in_held_out_records() {
+    crate::diagnose::bench::tests::check_effect(ID, "with fixed gaps both would stay at zero");
 }

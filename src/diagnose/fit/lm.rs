@@ -127,105 +127,145 @@ pub fn levenberg_marquardt<R: Residuals + ?Sized>(
     let p = theta0.len();
     assert_eq!(typ.len(), p, "one typical magnitude per parameter");
     let free: Vec<usize> = (0..p).filter(|j| !fixed.contains(j)).collect();
-    let mut theta = theta0.to_vec();
     let mut r = Vec::new();
-    let mut cost = evaluate(f, &theta, &mut r).ok_or(FitError::InvalidStart)?;
+    let cost = evaluate(f, theta0, &mut r).ok_or(FitError::InvalidStart)?;
     let n = r.len();
-    let mut evaluations = 1;
-    let mut lambda = opts.lambda0;
-    let mut iterations = 0;
-    let mut small = 0;
     let q = free.len();
-    if q == 0 || n == 0 {
-        return Ok(LmFit {
-            theta,
-            cost,
-            n,
-            iterations,
-            evaluations,
-        });
-    }
-    let mut jac = vec![0.0; n * q];
-    // Each free parameter's unit: its typical magnitude (1 where none is given).
-    let unit: Vec<f64> = free
-        .iter()
-        .map(|&j| {
-            let t = typ[j].abs();
-            if t > 0.0 && t.is_finite() { t } else { 1.0 }
-        })
-        .collect();
-    let mut rt = Vec::with_capacity(n);
-    let mut trial = theta.clone();
-    let out_of_time = || opts.deadline.is_some_and(|d| Instant::now() >= d);
-    'outer: while iterations < opts.max_iter && evaluations + q < opts.max_evals && !out_of_time() {
-        iterations += 1;
-        evaluations += jacobian(f, &theta, &r, typ, &free, opts.fd_rel, &mut jac);
-        let (h, g) = normal_equations(&jac, &r, q);
-        // In units of the typical magnitudes, so that the damping's floor and the factorisation do not depend
-        // on the data's units (a record in millimetres and the same in metres take the same steps).
-        let (h, g) = (
-            DMatrix::from_fn(q, q, |a, b| h[(a, b)] * unit[a] * unit[b]),
-            DVector::from_fn(q, |a, _| g[a] * unit[a]),
-        );
-        // Statistically negligible step: stop (the Gauss-Newton decrement in units of the noise variance).
-        if opts.stat_tol > 0.0 && n > q {
-            let s2 = cost / (n - q) as f64;
-            if let Some(dec) = gn_decrement(&h, &g)
-                && dec <= opts.stat_tol * s2
-            {
-                break;
-            }
-        }
-        let dmax = (0..q).map(|a| h[(a, a)]).fold(0.0f64, f64::max);
-        if dmax == 0.0 {
-            break;
-        }
-        loop {
-            let mut a = h.clone();
-            for d in 0..q {
-                a[(d, d)] += lambda * (h[(d, d)] + 1e-9 * dmax);
-            }
-            // Minimising |r(theta + delta)|^2 with r(theta + delta) ~ r + J delta: (J^T J) delta = -J^T r.
-            let step = a.cholesky().map(|c| c.solve(&(-&g)));
-            if let Some(delta) = step {
-                trial.copy_from_slice(&theta);
-                for (c, &j) in free.iter().enumerate() {
-                    trial[j] += delta[c] * unit[c];
-                }
-                evaluations += 1;
-                if let Some(c_new) = evaluate(f, &trial, &mut rt)
-                    && rt.len() == n
-                    && c_new < cost
+    let mut st = State {
+        theta: theta0.to_vec(),
+        trial: theta0.to_vec(),
+        rt: Vec::with_capacity(n),
+        r,
+        cost,
+        lambda: opts.lambda0,
+        evaluations: 1,
+        small: 0,
+    };
+    let mut iterations = 0;
+    if q > 0 && n > 0 {
+        let mut jac = vec![0.0; n * q];
+        // Each free parameter's unit: its typical magnitude (1 where none is given).
+        let unit: Vec<f64> = free
+            .iter()
+            .map(|&j| {
+                let t = typ[j].abs();
+                if t > 0.0 && t.is_finite() { t } else { 1.0 }
+            })
+            .collect();
+        while iterations < opts.max_iter
+            && st.evaluations + q < opts.max_evals
+            && !out_of_time(opts)
+        {
+            iterations += 1;
+            st.evaluations += jacobian(f, &st.theta, &st.r, typ, &free, opts.fd_rel, &mut jac);
+            let (h, g) = normal_equations(&jac, &st.r, q);
+            // In units of the typical magnitudes, so that the damping's floor and the factorisation do not
+            // depend on the data's units (a record in millimetres and the same in metres take the same steps).
+            let (h, g) = (
+                DMatrix::from_fn(q, q, |a, b| h[(a, b)] * unit[a] * unit[b]),
+                DVector::from_fn(q, |a, _| g[a] * unit[a]),
+            );
+            // Statistically negligible step: stop (the Gauss-Newton decrement in units of the noise variance).
+            if opts.stat_tol > 0.0 && n > q {
+                let s2 = st.cost / (n - q) as f64;
+                if let Some(dec) = gn_decrement(&h, &g)
+                    && dec <= opts.stat_tol * s2
                 {
-                    let gain = cost - c_new;
-                    theta.copy_from_slice(&trial);
-                    std::mem::swap(&mut r, &mut rt);
-                    cost = c_new;
-                    lambda = (lambda / 3.0).max(1e-12);
-                    if gain < opts.rel_tol * cost {
-                        small += 1;
-                        if small >= 2 {
-                            break 'outer;
-                        }
-                    } else {
-                        small = 0;
-                    }
                     break;
                 }
             }
-            lambda *= 4.0;
-            if lambda > opts.lambda_max || evaluations >= opts.max_evals || out_of_time() {
-                break 'outer;
+            if !st.damped_step(f, opts, (&free, &unit), (&h, &g)) {
+                break;
             }
         }
     }
     Ok(LmFit {
-        theta,
-        cost,
+        theta: st.theta,
+        cost: st.cost,
         n,
         iterations,
-        evaluations,
+        evaluations: st.evaluations,
     })
+}
+
+fn out_of_time(opts: &LmOptions) -> bool {
+    opts.deadline.is_some_and(|d| Instant::now() >= d)
+}
+
+/// A Levenberg-Marquardt fit under way: the parameters with their residuals and cost, the damping, the
+/// evaluations spent, the count of small gains in a row, and scratch buffers for a trial step.
+struct State {
+    theta: Vec<f64>,
+    r: Vec<f64>,
+    cost: f64,
+    lambda: f64,
+    evaluations: usize,
+    small: usize,
+    trial: Vec<f64>,
+    rt: Vec<f64>,
+}
+
+impl State {
+    /// Steps from the normal equations `(h, g)` (in units `unit` of the `free` parameters) with growing
+    /// damping until one lowers the cost. Returns whether the fit goes on: not after two small gains in a
+    /// row, nor when the damping passes its bound or the evaluations or the time are spent.
+    fn damped_step<R: Residuals + ?Sized>(
+        &mut self,
+        f: &R,
+        opts: &LmOptions,
+        (free, unit): (&[usize], &[f64]),
+        (h, g): (&DMatrix<f64>, &DVector<f64>),
+    ) -> bool {
+        let q = free.len();
+        let dmax = (0..q).map(|a| h[(a, a)]).fold(0.0f64, f64::max);
+        if dmax == 0.0 {
+            return false;
+        }
+        loop {
+            let mut a = h.clone();
+            for d in 0..q {
+                a[(d, d)] += self.lambda * (h[(d, d)] + 1e-9 * dmax);
+            }
+            // Minimising |r(theta + delta)|^2 with r(theta + delta) ~ r + J delta: (J^T J) delta = -J^T r.
+            if let Some(delta) = a.cholesky().map(|c| c.solve(&(-g))) {
+                self.trial.copy_from_slice(&self.theta);
+                for (c, &j) in free.iter().enumerate() {
+                    self.trial[j] += delta[c] * unit[c];
+                }
+                self.evaluations += 1;
+                if let Some(c_new) = evaluate(f, &self.trial, &mut self.rt)
+                    && self.rt.len() == self.r.len()
+                    && c_new < self.cost
+                {
+                    return self.accept(c_new, opts.rel_tol);
+                }
+            }
+            self.lambda *= 4.0;
+            if self.lambda > opts.lambda_max
+                || self.evaluations >= opts.max_evals
+                || out_of_time(opts)
+            {
+                return false;
+            }
+        }
+    }
+
+    /// Take the trial step (cost `c_new`) and ease the damping; returns false after the second gain in a row
+    /// below `rel_tol` of the cost.
+    fn accept(&mut self, c_new: f64, rel_tol: f64) -> bool {
+        let gain = self.cost - c_new;
+        self.theta.copy_from_slice(&self.trial);
+        std::mem::swap(&mut self.r, &mut self.rt);
+        self.cost = c_new;
+        self.lambda = (self.lambda / 3.0).max(1e-12);
+        if gain < rel_tol * self.cost {
+            self.small += 1;
+            self.small < 2
+        } else {
+            self.small = 0;
+            true
+        }
+    }
 }
 
 /// Forward-difference Jacobian of the residuals at `theta` (residuals `r` there), column-major over the

@@ -12,13 +12,12 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::catalogue::EffectId;
-use super::decision::{DECISION_RULE, structure_penalty};
-use super::engine::{CrossValidation, Diagnosis, usable_lags};
-use super::model::Extension;
-use super::residual;
+use crate::diagnose::effects::CATALOGUE;
+use crate::diagnose::effects::figure::{Figure, fmt, output_against_input, pts};
+use crate::diagnose::residual;
+use crate::diagnose::search::decision::DECISION_RULE;
+use crate::diagnose::search::engine::{CrossValidation, Diagnosis, usable_lags};
 use crate::io::write_atomic;
-use crate::plant::Mode;
 use crate::report::plot::{Axes, Panel, PlotError, Series, grid_plot, line_plot};
 
 /// Why a report could not be written.
@@ -67,14 +66,6 @@ pub struct ReportInput<'a> {
     pub validations: &'a [Validation],
 }
 
-fn pts(x: &[f64], y: &[f64]) -> Vec<(f64, f64)> {
-    x.iter().zip(y).map(|(a, b)| (*a, *b)).collect()
-}
-
-fn fmt(v: f64) -> String {
-    crate::report::number(v)
-}
-
 /// Write `report.md` and the figures into `dir` (created if needed). Returns the Markdown file's path.
 pub fn write_report(
     dir: &Path,
@@ -85,81 +76,145 @@ pub fn write_report(
         path: dir.to_path_buf(),
         source,
     })?;
-    let n = d.n;
-    let nf = d.n_fit;
-    let t = &input.t[..n];
-    let y = &input.y[..n];
-    let before = &d.base_sim.y;
-    let steps = d.steps();
-    let after: &[f64] = steps.last().map_or(before, |c| &c.output);
-    let after_label = if steps.is_empty() {
-        "declared model (null)".to_string()
-    } else {
-        format!(
-            "extended: {}",
-            steps
-                .iter()
-                .map(|c| c.id.as_str())
-                .collect::<Vec<_>>()
-                .join(" + ")
-        )
-    };
-    let e0: Vec<f64> = y.iter().zip(before).map(|(a, b)| a - b).collect();
-    let e1: Vec<f64> = y.iter().zip(after).map(|(a, b)| a - b).collect();
-    let mut figures: Vec<(String, String)> = Vec::new();
+    let c = Curves::new(d, input);
+    let mut figures = vec![
+        heldout_figure(dir, d, input, &c)?,
+        residual_figure(dir, d, input, &c)?,
+        correlations_figure(dir, d, input, &c)?,
+        (
+            "evidence.png".into(),
+            evidence(dir, d, input, &c.e0, &c.e1, &c.after_label)?,
+        ),
+    ];
+    if !d.steps().is_empty() {
+        figures.push(("steps.png".into(), steps_plot(dir, d, input)?));
+    }
+    for v in input.validations {
+        figures.push(validation_figure(dir, v, input, &c)?);
+    }
+    let md = markdown(d, input, &figures);
+    let path = dir.join("report.md");
+    write_atomic(&path, |w| w.write_all(md.as_bytes())).map_err(|source| ReportError::Write {
+        path: path.clone(),
+        source,
+    })?;
+    Ok(path)
+}
 
-    // Held-out part.
-    let th = &t[nf..];
+/// The declared and the final model's outputs and residuals over the record, and the final model's name in
+/// the legends.
+struct Curves<'a> {
+    before: &'a [f64],
+    after: &'a [f64],
+    after_label: String,
+    e0: Vec<f64>,
+    e1: Vec<f64>,
+}
+
+impl<'a> Curves<'a> {
+    fn new(d: &'a Diagnosis, input: &ReportInput) -> Self {
+        let y = &input.y[..d.n];
+        let before = &d.base_sim.y;
+        let steps = d.steps();
+        let after: &[f64] = steps.last().map_or(before, |c| &c.output);
+        let after_label = if steps.is_empty() {
+            "declared model (null)".to_string()
+        } else {
+            format!(
+                "extended: {}",
+                steps
+                    .iter()
+                    .map(|c| c.id.as_str())
+                    .collect::<Vec<_>>()
+                    .join(" + ")
+            )
+        };
+        Self {
+            before,
+            after,
+            e0: y.iter().zip(before).map(|(a, b)| a - b).collect(),
+            e1: y.iter().zip(after).map(|(a, b)| a - b).collect(),
+            after_label,
+        }
+    }
+}
+
+/// The held-out part: measured output against the declared and the final model.
+fn heldout_figure(
+    dir: &Path,
+    d: &Diagnosis,
+    input: &ReportInput,
+    c: &Curves,
+) -> Result<(String, String), ReportError> {
+    let (n, nf) = (d.n, d.n_fit);
+    let th = &input.t[nf..n];
     line_plot(
         &dir.join("heldout.png"),
         "Held-out part: measured output and the two models",
         input.columns[0],
         input.columns[2],
         &[
-            Series::line("measured", pts(th, &y[nf..])).color(7),
-            Series::line("declared model", pts(th, &before[nf..])).color(3),
-            Series::line(&after_label, pts(th, &after[nf..])).color(0),
+            Series::line("measured", pts(th, &input.y[nf..n])).color(7),
+            Series::line("declared model", pts(th, &c.before[nf..])).color(3),
+            Series::line(&c.after_label, pts(th, &c.after[nf..])).color(0),
         ],
         Axes::LINEAR,
     )?;
-    figures.push((
+    Ok((
         "heldout.png".into(),
         format!(
             "Held-out part ({} samples, not used by any fit): measured (grey), declared model (red, RMSE {}), {} (blue, RMSE {}).",
             n - nf,
             fmt(d.base_heldout_rmse),
-            after_label,
+            c.after_label,
             fmt(d.after_rmse())
         ),
-    ));
+    ))
+}
 
-    // Residuals.
-    let (lo, hi) = e0
-        .iter()
-        .chain(&e1)
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(*v), h.max(*v))
-        });
+/// The residual of both models over the record, the fit / held-out split marked.
+fn residual_figure(
+    dir: &Path,
+    d: &Diagnosis,
+    input: &ReportInput,
+    c: &Curves,
+) -> Result<(String, String), ReportError> {
+    let t = &input.t[..d.n];
+    let (lo, hi) =
+        c.e0.iter()
+            .chain(&c.e1)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(*v), h.max(*v))
+            });
     line_plot(
         &dir.join("residual.png"),
         "Residual y - y_model over the record",
         input.columns[0],
         &format!("residual of {}", input.columns[2]),
         &[
-            Series::line("declared model", pts(t, &e0)).color(3),
-            Series::line(&after_label, pts(t, &e1)).color(0),
-            Series::dashed("fit | held-out", vec![(t[nf], lo), (t[nf], hi)]).color(7),
+            Series::line("declared model", pts(t, &c.e0)).color(3),
+            Series::line(&c.after_label, pts(t, &c.e1)).color(0),
+            Series::dashed("fit | held-out", vec![(t[d.n_fit], lo), (t[d.n_fit], hi)]).color(7),
         ],
         Axes::LINEAR,
     )?;
-    figures.push((
+    Ok((
         "residual.png".into(),
         "Residual of the declared model (red) and of the chosen model (blue); left of the dashed line the fit \
          part, right of it the held-out part."
             .into(),
-    ));
+    ))
+}
 
-    // Correlation functions on the fit part.
+/// Autocorrelation and residual-input cross-correlation on the fit part, before and after, with the 95%
+/// bands of a white residual.
+fn correlations_figure(
+    dir: &Path,
+    d: &Diagnosis,
+    input: &ReportInput,
+    c: &Curves,
+) -> Result<(String, String), ReportError> {
+    let nf = d.n_fit;
     let lags = usable_lags(d.config.lags, nf);
     let band = residual::white_band(nf);
     let lagx: Vec<f64> = (1..=lags).map(|l| l as f64).collect();
@@ -170,44 +225,38 @@ pub fn write_report(
             Series::dashed("", vec![(x0, -band), (lags as f64, -band)]).color(7),
         ]
     };
-    let acf0 = residual::autocorrelation(&e0[..nf], lags);
-    let acf1 = residual::autocorrelation(&e1[..nf], lags);
-    let cc0 = residual::cross_correlation(&e0[..nf], &input.u[..nf], lags);
-    let cc1 = residual::cross_correlation(&e1[..nf], &input.u[..nf], lags);
+    let acf0 = residual::autocorrelation(&c.e0[..nf], lags);
+    let acf1 = residual::autocorrelation(&c.e1[..nf], lags);
+    let cc0 = residual::cross_correlation(&c.e0[..nf], &input.u[..nf], lags);
+    let cc1 = residual::cross_correlation(&c.e1[..nf], &input.u[..nf], lags);
     let mut p1 = vec![
         Series::points("declared model", pts(&lagx, &acf0)).color(3),
-        Series::points(&after_label, pts(&lagx, &acf1)).color(0),
+        Series::points(&c.after_label, pts(&lagx, &acf1)).color(0),
     ];
     p1.extend(bands(1.0));
     let mut p2 = vec![
         Series::points("declared model", pts(&lag0, &cc0.r)).color(3),
-        Series::points(&after_label, pts(&lag0, &cc1.r)).color(0),
+        Series::points(&c.after_label, pts(&lag0, &cc1.r)).color(0),
     ];
     p2.extend(bands(0.0));
+    let panel = |title, series| Panel {
+        title,
+        x_label: "lag",
+        y_label: "r",
+        series,
+        log_x: false,
+        log_y: false,
+    };
     grid_plot(
         &dir.join("correlations.png"),
         "Correlation functions of the residual (fit part)",
         &[
-            Panel {
-                title: "autocorrelation r_ee(lag)",
-                x_label: "lag",
-                y_label: "r",
-                series: p1,
-                log_x: false,
-                log_y: false,
-            },
-            Panel {
-                title: "cross-correlation r_eu(lag)",
-                x_label: "lag",
-                y_label: "r",
-                series: p2,
-                log_x: false,
-                log_y: false,
-            },
+            panel("autocorrelation r_ee(lag)", p1),
+            panel("cross-correlation r_eu(lag)", p2),
         ],
         2,
     )?;
-    figures.push((
+    Ok((
         "correlations.png".into(),
         format!(
             "Autocorrelation of the residual and its correlation with past inputs on the fit part, declared model \
@@ -215,50 +264,40 @@ pub fn write_report(
              independent of the input.",
             fmt(band)
         ),
-    ));
+    ))
+}
 
-    // Evidence.
-    let caption = evidence(dir, d, input, &e0, &e1, &after_label)?;
-    figures.push(("evidence.png".into(), caption));
-    if !steps.is_empty() {
-        figures.push(("steps.png".into(), steps_plot(dir, d, input)?));
-    }
-
-    // Cross-record validations.
-    for v in input.validations {
-        let file = format!("validate_{}.png", v.name);
-        line_plot(
-            &dir.join(&file),
-            &format!("Cross-record validation on {}", v.name),
-            input.columns[0],
-            input.columns[2],
-            &[
-                Series::line("measured", pts(&v.t, &v.y)).color(7),
-                Series::line("declared model", pts(&v.t, &v.result.before)).color(3),
-                Series::line(&after_label, pts(&v.t, &v.result.after)).color(0),
-            ],
-            Axes::LINEAR,
-        )?;
-        figures.push((
-            file,
-            format!(
-                "{}: the models fitted here, simulated over that record from rest: RMSE declared {}, chosen {} \
-                 (the output's standard deviation is {}).",
-                v.name,
-                fmt(v.result.rmse_before),
-                fmt(v.result.rmse_after),
-                fmt(v.result.y_std)
-            ),
-        ));
-    }
-
-    let md = markdown(d, input, &figures);
-    let path = dir.join("report.md");
-    write_atomic(&path, |w| w.write_all(md.as_bytes())).map_err(|source| ReportError::Write {
-        path: path.clone(),
-        source,
-    })?;
-    Ok(path)
+/// A cross-record validation: measured against both models over that record.
+fn validation_figure(
+    dir: &Path,
+    v: &Validation,
+    input: &ReportInput,
+    c: &Curves,
+) -> Result<(String, String), ReportError> {
+    let file = format!("validate_{}.png", v.name);
+    line_plot(
+        &dir.join(&file),
+        &format!("Cross-record validation on {}", v.name),
+        input.columns[0],
+        input.columns[2],
+        &[
+            Series::line("measured", pts(&v.t, &v.y)).color(7),
+            Series::line("declared model", pts(&v.t, &v.result.before)).color(3),
+            Series::line(&c.after_label, pts(&v.t, &v.result.after)).color(0),
+        ],
+        Axes::LINEAR,
+    )?;
+    Ok((
+        file,
+        format!(
+            "{}: the models fitted here, simulated over that record from rest: RMSE declared {}, chosen {} \
+             (the output's standard deviation is {}).",
+            v.name,
+            fmt(v.result.rmse_before),
+            fmt(v.result.rmse_after),
+            fmt(v.result.y_std)
+        ),
+    ))
 }
 
 /// The held-out error after each step of the loop (step 0: the declared model); returns its caption.
@@ -297,7 +336,8 @@ fn steps_plot(dir: &Path, d: &Diagnosis, input: &ReportInput) -> Result<String, 
     ))
 }
 
-/// The effect-specific figure; returns its caption.
+/// The evidence figure: the first effect's own ([`crate::diagnose::effects::Effect::evidence`]), or for
+/// `null` the declared model against the measured output; returns its caption.
 fn evidence(
     dir: &Path,
     d: &Diagnosis,
@@ -307,267 +347,46 @@ fn evidence(
     after_label: &str,
 ) -> Result<String, ReportError> {
     let path = dir.join("evidence.png");
-    let n = d.n;
-    let nf = d.n_fit;
-    let t = &input.t[..n];
-    let sim = &d.base_sim;
-    let id = d.effect_id();
-    let test = d.pointing_test().unwrap_or("none");
-    match (id, d.effect().and_then(|c| c.model.extension(c.id))) {
-        (Some(EffectId::GapDrift), Some(Extension::GapDrift { c1_rate, c2_rate })) => {
-            // Running means of the declared model's residual on each border, and the drift the fit found.
-            let win = (n / 25).max(5);
-            let running = |mode: Mode| -> Vec<(f64, f64)> {
-                let idx: Vec<usize> = (0..n).filter(|&k| sim.mode[k] == mode).collect();
-                running_means(t, e0, &idx, win)
-            };
-            let c = d.effect().expect("chosen");
-            let m2 = c.model.base.m2;
-            let [up_line, dn_line] = border_drift_lines(t, *c1_rate, *c2_rate, m2);
-            let (ru, rd) = (running(Mode::Up), running(Mode::Down));
-            let (lu, ld) = (centred_on(up_line, &ru), centred_on(dn_line, &rd));
-            line_plot(
-                &path,
-                "Evidence for gap-drift: residual of the declared model on each border",
-                input.columns[0],
-                "running mean of the residual",
-                &[
-                    Series::line("upper border (driving up)", ru).color(1),
-                    Series::line("lower border (driving down)", rd).color(2),
-                    Series::dashed("fitted drift, upper", lu).color(1),
-                    Series::dashed("fitted drift, lower", ld).color(2),
-                ],
-                Axes::LINEAR,
+    let chosen = d.effect();
+    let fig = Figure {
+        path: &path,
+        test: d.pointing_test().unwrap_or("none"),
+        n: d.n,
+        n_fit: d.n_fit,
+        t: &input.t[..d.n],
+        u: input.u,
+        y: input.y,
+        columns: input.columns,
+        declared: &d.base_sim,
+        e0,
+        e1,
+        after_label,
+        model: chosen.map_or(&d.base, |c| &c.model),
+        output: chosen.map_or(&d.base_sim.y, |c| &c.output),
+        lags: usable_lags(d.config.lags, d.n_fit),
+    };
+    Ok(match chosen {
+        Some(c) => c.id.effect().evidence(&fig)?,
+        None => {
+            output_against_input(
+                &fig,
+                "No effect supported: output against input (held-out part)",
+                false,
             )?;
-            Ok(format!(
-                "Pointing test: {test}. Running mean ({win} samples) of the declared model's residual on the upper and \
-                 lower borders; with fixed gaps both would stay at zero. Dashed: the change the fitted drift \
-                 predicts (c1 rate {}, c2 rate {} per sample).",
-                fmt(*c1_rate),
-                fmt(*c2_rate)
-            ))
+            "No extension passed both criteria; the declared model against the measured output."
+                .to_string()
         }
-        (Some(EffectId::CurvedBorders), Some(Extension::CurvedBorders { upper, lower })) => {
-            let mut up = Vec::new();
-            let mut dn = Vec::new();
-            for ((m, x), e) in sim.mode.iter().zip(&sim.x).zip(e0).take(nf) {
-                match m {
-                    Mode::Up => up.push((*x, *e)),
-                    Mode::Down => dn.push((*x, *e)),
-                    Mode::Held => {}
-                }
-            }
-            let c = d.effect().expect("chosen");
-            line_plot(
-                &path,
-                "Evidence for curved-borders: residual against the linear block's output",
-                &format!(
-                    "x_hat (the linear block's output, from {})",
-                    input.columns[1]
-                ),
-                "residual on the border",
-                &[
-                    Series::points("upper border samples", up.clone()).color(1),
-                    Series::points("lower border samples", dn.clone()).color(2),
-                    Series::line(
-                        "fitted upper curvature",
-                        border_curve(upper, -c.model.base.c1, &up),
-                    )
-                    .color(1),
-                    Series::line(
-                        "fitted lower curvature",
-                        border_curve(lower, c.model.base.c2, &dn),
-                    )
-                    .color(2),
-                ],
-                Axes::LINEAR,
-            )?;
-            Ok(format!(
-                "Pointing test: {test}. The declared model's residual on engaged samples against its x_hat: straight \
-                 borders leave no trend; lines: the quadratic and cubic terms the extension fitted."
-            ))
-        }
-        (Some(EffectId::PeriodicDisturbance), Some(Extension::Periodic { omega, .. })) => {
-            let (w, p) = residual::periodogram(&e0[..nf], false);
-            let pmax = p.iter().cloned().fold(0.0, f64::max);
-            let pmin = p
-                .iter()
-                .cloned()
-                .filter(|v| *v > 0.0)
-                .fold(f64::INFINITY, f64::min);
-            line_plot(
-                &path,
-                "Evidence for periodic-disturbance: periodogram of the residual (fit part)",
-                "omega, rad/sample",
-                "power",
-                &[
-                    Series::line("declared model's residual", pts(&w, &p)).color(3),
-                    Series::dashed("fitted frequency", vec![(*omega, pmin), (*omega, pmax)])
-                        .color(0),
-                ],
-                Axes::LOG_LOG,
-            )?;
-            Ok(format!(
-                "Pointing test: {test}. A line in the residual's spectrum stands far above the noise floor; dashed: \
-                 the frequency the fit settled on ({} rad/sample).",
-                fmt(*omega)
-            ))
-        }
-        (Some(EffectId::Quantization), Some(Extension::Quantization { step, .. })) => {
-            let k0 = nf;
-            let k1 = (nf + 150).min(n);
-            let c = d.effect().expect("chosen");
-            line_plot(
-                &path,
-                "Evidence for quantization: a stretch of the held-out part",
-                input.columns[0],
-                input.columns[2],
-                &[
-                    Series::points("measured", pts(&t[k0..k1], &input.y[k0..k1])).color(7),
-                    Series::line("declared model", pts(&t[k0..k1], &sim.y[k0..k1])).color(3),
-                    Series::line(after_label, pts(&t[k0..k1], &c.output[k0..k1])).color(0),
-                ],
-                Axes::LINEAR,
-            )?;
-            Ok(format!(
-                "Pointing test: {test}. The measured values sit on a grid of step {} (the lattice test); the extended \
-                 model predicts the sensor's expected reading on that grid.",
-                fmt(*step)
-            ))
-        }
-        (Some(EffectId::ColouredNoise), Some(Extension::ColouredNoise { phi })) => {
-            let lags = usable_lags(d.config.lags, nf);
-            let band = residual::white_band(nf);
-            let lagx: Vec<f64> = (1..=lags).map(|l| l as f64).collect();
-            let acf0 = residual::autocorrelation(&e0[..nf], lags);
-            let acf1 = residual::autocorrelation(&e1[..nf], lags);
-            let model = ar_acf(phi, lags);
-            line_plot(
-                &path,
-                "Evidence for coloured-noise: autocorrelation of the output error",
-                "lag",
-                "r",
-                &[
-                    Series::points("declared model's residual", pts(&lagx, &acf0)).color(3),
-                    Series::line("fitted AR noise model", pts(&lagx, &model)).color(1),
-                    Series::points("one-step prediction errors", pts(&lagx, &acf1)).color(0),
-                    Series::dashed("95% band", vec![(1.0, band), (lags as f64, band)]).color(7),
-                    Series::dashed("", vec![(1.0, -band), (lags as f64, -band)]).color(7),
-                ],
-                Axes::LINEAR,
-            )?;
-            Ok(format!(
-                "Pointing test: {test}. The residual is correlated over many lags (red) in the way an AR({}) \
-                 disturbance is (orange); the one-step prediction errors of the model with that noise model are \
-                 white (blue).",
-                phi.len()
-            ))
-        }
-        (Some(EffectId::DirectionDependent), Some(_)) => {
-            // The held-out output over time, at most 400 samples so that single rises and falls show.
-            let end = n.min(nf + 400);
-            let after = &d.effect().expect("the arm matched an effect").output;
-            line_plot(
-                &path,
-                "Evidence for direction-dependent: rises and falls (held-out part)",
-                input.columns[0],
-                input.columns[2],
-                &[
-                    Series::line("measured", pts(&t[nf..end], &input.y[nf..end])).color(7),
-                    Series::line("declared model", pts(&t[nf..end], &sim.y[nf..end])).color(3),
-                    Series::line(after_label, pts(&t[nf..end], &after[nf..end])).color(0),
-                ],
-                Axes::LINEAR,
-            )?;
-            Ok(format!(
-                "Pointing test: {test}. The measured output rises and falls at different speeds; the declared \
-                 linear block has one set of coefficients for both (red), the block with a falling set follows \
-                 both (blue)."
-            ))
-        }
-        (Some(EffectId::ExtraDelay | EffectId::LinearOrder), _) => {
-            let lags = usable_lags(d.config.lags, nf);
-            let band = residual::white_band(nf);
-            let lag0: Vec<f64> = (0..=lags).map(|l| l as f64).collect();
-            let cc0 = residual::cross_correlation(&e0[..nf], &input.u[..nf], lags);
-            let cc1 = residual::cross_correlation(&e1[..nf], &input.u[..nf], lags);
-            line_plot(
-                &path,
-                "Evidence: correlation of the residual with past inputs (fit part)",
-                "lag",
-                "r_eu",
-                &[
-                    Series::points("declared model", pts(&lag0, &cc0.r)).color(3),
-                    Series::points(after_label, pts(&lag0, &cc1.r)).color(0),
-                    Series::dashed("95% band", vec![(0.0, band), (lags as f64, band)]).color(7),
-                    Series::dashed("", vec![(0.0, -band), (lags as f64, -band)]).color(7),
-                ],
-                Axes::LINEAR,
-            )?;
-            Ok(format!(
-                "Pointing test: {test}. The declared model's residual still depends on past inputs (red points outside \
-                 the band): the linear block misses a term or a delay; the chosen structure leaves none (blue)."
-            ))
-        }
-        _ => {
-            // Friction, saturation and null: the output against the input on the held-out part.
-            let c = d.effect();
-            let mut series = vec![
-                Series::points("measured", pts(&input.u[nf..n], &input.y[nf..n])).color(7),
-                Series::points("declared model", pts(&input.u[nf..n], &sim.y[nf..n])).color(3),
-            ];
-            if let Some(c) = c {
-                series.push(
-                    Series::points(after_label, pts(&input.u[nf..n], &c.output[nf..n])).color(0),
-                );
-            }
-            let title = match id {
-                Some(e) => format!("Evidence for {e}: output against input (held-out part)"),
-                None => "No effect supported: output against input (held-out part)".to_string(),
-            };
-            line_plot(
-                &path,
-                &title,
-                input.columns[1],
-                input.columns[2],
-                &series,
-                Axes::LINEAR,
-            )?;
-            Ok(match id {
-                Some(EffectId::Friction) => format!(
-                    "Pointing test: {test}. Output against input: the measured force saturates at the slip levels and, \
-                     after each reversal, unloads along a steep elastic line; the declared backlash cannot saturate, \
-                     the friction element does."
-                ),
-                Some(EffectId::Saturation) => format!(
-                    "Pointing test: {test}. Output against input: the measured output is cut off at its extremes; the \
-                     declared model overshoots there, the clipped model does not."
-                ),
-                Some(e) => format!("Pointing test: {test}. Output against input for {e}."),
-                None => "No extension passed both criteria; the declared model against the measured output.".to_string(),
-            })
-        }
-    }
+    })
 }
 
-/// Autocorrelation r(1..=lags) of the AR process e(k) = sum phi_i e(k-i) + v(k) (Yule-Walker, by simulating
-/// its impulse response).
-fn ar_acf(phi: &[f64], lags: usize) -> Vec<f64> {
-    let len = 4000;
-    let mut h = vec![0.0; len];
-    h[0] = 1.0;
-    for k in 1..len {
-        h[k] = phi
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| k > *i)
-            .map(|(i, p)| p * h[k - 1 - i])
-            .sum();
-    }
-    let r0: f64 = h.iter().map(|v| v * v).sum();
-    (1..=lags)
-        .map(|l| h.iter().zip(&h[l..]).map(|(a, b)| a * b).sum::<f64>() / r0)
-        .collect()
+/// The effects that search several structures with their BIC penalties ("extra-delay 1.10, ...").
+fn structure_penalties() -> String {
+    CATALOGUE
+        .iter()
+        .filter(|e| e.structure_penalty() > 0.0)
+        .map(|e| format!("{} {:.2}", e.id(), e.structure_penalty()))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn list(v: &[f64]) -> String {
@@ -681,12 +500,27 @@ fn loop_section(s: &mut String, d: &Diagnosis) {
 
 fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) -> String {
     let mut s = String::new();
-    let effect = d.effect();
+    section_header(&mut s, d, input);
+    section_structure(&mut s, d);
+    section_backlash(&mut s, d);
+    section_result(&mut s, d);
+    section_effect_paragraph(&mut s, d);
+    section_loop_and_rule(&mut s, d);
+    section_tests(&mut s, d);
+    section_candidates(&mut s, d);
+    section_models(&mut s, d);
+    section_validations(&mut s, d, input);
+    section_figures(&mut s, d, figures);
+    s
+}
+
+/// The title, the command, the model and the split of the record.
+fn section_header(s: &mut String, d: &Diagnosis, input: &ReportInput) {
+    let st = &d.structure;
     let _ = writeln!(s, "# Diagnosis of {}\n", input.file);
     if let Some(c) = &input.command {
         let _ = writeln!(s, "Produced by `{c}`.\n");
     }
-    let st = &d.structure;
     let _ = writeln!(
         s,
         "Model: pseudo-Wiener with backlash, {} ({}; m1 = 1 is the normalisation). Record: {} samples \
@@ -702,6 +536,11 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
         d.n - d.n_fit,
         d.initial.reason
     );
+}
+
+/// How the structure was chosen, when it was not declared.
+fn section_structure(s: &mut String, d: &Diagnosis) {
+    let st = &d.structure;
     if !st.candidates.is_empty() {
         let _ = writeln!(s, "## Structure\n");
         let _ = writeln!(
@@ -733,6 +572,10 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
             st.candidates.len()
         );
     }
+}
+
+/// Whether the data support the backlash rather than a straight line.
+fn section_backlash(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(s, "## Backlash or a straight line?\n");
     let _ = writeln!(
         s,
@@ -745,6 +588,10 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
         fmt(d.base_heldout_rmse),
         fmt(d.base_fit_rmse)
     );
+}
+
+/// The effects found, in order, when there are several.
+fn section_result(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(s, "## Result\n");
     let steps = d.steps();
     if steps.len() > 1 {
@@ -758,6 +605,11 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
             fmt(d.after_rmse())
         );
     }
+}
+
+/// The first effect (or null) with its evidence in numbers.
+fn section_effect_paragraph(s: &mut String, d: &Diagnosis) {
+    let effect = d.effect();
     match effect {
         Some(c) => {
             let _ = writeln!(
@@ -796,7 +648,11 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
             );
         }
     }
-    loop_section(&mut s, d);
+}
+
+/// The loop, the decision rule, what was set aside and what was not tried.
+fn section_loop_and_rule(s: &mut String, d: &Diagnosis) {
+    loop_section(s, d);
     let _ = writeln!(s, "Decision rule: {}.\n", DECISION_RULE);
     for why in &d.set_aside {
         let _ = writeln!(s, "Set aside: {why}.\n");
@@ -810,7 +666,10 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
             names.join(", ")
         );
     }
+}
 
+/// The residual tests on the declared model.
+fn section_tests(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(s, "## Residual tests\n");
     let _ = writeln!(
         s,
@@ -836,6 +695,10 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
             t.verdict.detail.replace('|', "/")
         );
     }
+}
+
+/// The candidates of the first round with their parameters and judgements.
+fn section_candidates(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(s, "\n## Candidates\n");
     if d.candidates.is_empty() {
         let _ = writeln!(s, "No test rejected: no candidate was fitted.\n");
@@ -844,9 +707,8 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
             s,
             "Each candidate extension is fitted on the fit part (Levenberg-Marquardt on the simulated output, \
              started from the declared fit). BIC = N ln(RSS/N) + k ln N (+ ln of the number of structures \
-             searched: extra-delay {:.2}, linear-order {:.2}); dBIC < 0 favours the extension.\n",
-            structure_penalty(EffectId::ExtraDelay),
-            structure_penalty(EffectId::LinearOrder)
+             searched: {}); dBIC < 0 favours the extension.\n",
+            structure_penalties()
         );
         let _ = writeln!(
             s,
@@ -876,6 +738,11 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
         }
         let _ = writeln!(s);
     }
+}
+
+/// The declared and the extended model's parameters.
+fn section_models(s: &mut String, d: &Diagnosis) {
+    let effect = d.effect();
     let _ = writeln!(s, "## Models\n");
     let b = &d.base.base;
     let _ = writeln!(
@@ -907,6 +774,11 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
             params_text(&d.to_json(None)["effect"]["parameters"])
         );
     }
+}
+
+/// The cross-record validations.
+fn section_validations(s: &mut String, d: &Diagnosis, input: &ReportInput) {
+    let effect = d.effect();
     if !input.validations.is_empty() {
         let _ = writeln!(s, "## Cross-record validation\n");
         let _ = writeln!(
@@ -927,6 +799,10 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
         }
         let _ = writeln!(s);
     }
+}
+
+/// The figures with their captions, and why no offset effect.
+fn section_figures(s: &mut String, _d: &Diagnosis, figures: &[(String, String)]) {
     let _ = writeln!(s, "## Figures\n");
     for (f, cap) in figures {
         let _ = writeln!(s, "![{f}]({f})\n\n{cap}\n");
@@ -938,65 +814,6 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
          m2 (x + c2) + d = m2 (x + (c2 + d/m2)), so the declared model already fits it and no data can show it \
          (an input offset passes through the linear block and is absorbed the same way)."
     );
-    s
-}
-
-/// The change of each border a fitted gap drift predicts against the declared fit: the upper border
-/// `y = m1 (x - c1(k))` (m1 = 1) falls by `c1_rate k`, the lower `y = m2 (x + c2(k))` rises by
-/// `m2 c2_rate k`.
-fn border_drift_lines(t: &[f64], c1_rate: f64, c2_rate: f64, m2: f64) -> [Vec<(f64, f64)>; 2] {
-    [drift_line(t, -c1_rate), drift_line(t, m2 * c2_rate)]
-}
-
-/// `line` moved up or down so that its mean equals the mean of `data`'s y (the declared fit absorbed the
-/// average gap, so only the change over time is the drift's).
-fn centred_on(line: Vec<(f64, f64)>, data: &[(f64, f64)]) -> Vec<(f64, f64)> {
-    let ml = line.iter().map(|p| p.1).sum::<f64>() / line.len().max(1) as f64;
-    let md = data.iter().map(|p| p.1).sum::<f64>() / data.len().max(1) as f64;
-    line.into_iter().map(|(a, b)| (a, b - ml + md)).collect()
-}
-
-/// The line `slope k` (k the sample index) at about 200 of the times `t`.
-fn drift_line(t: &[f64], slope: f64) -> Vec<(f64, f64)> {
-    (0..t.len())
-        .step_by((t.len() / 200).max(1))
-        .map(|k| (t[k], slope * k as f64))
-        .collect()
-}
-
-/// Means of `e` over windows of `win` consecutive samples of `idx` (every `win / 4`-th window), each at the
-/// time `t` of its middle sample.
-fn running_means(t: &[f64], e: &[f64], idx: &[usize], win: usize) -> Vec<(f64, f64)> {
-    idx.windows(win)
-        .step_by((win / 4).max(1))
-        .map(|w| {
-            (
-                t[w[w.len() / 2]],
-                w.iter().map(|&k| e[k]).sum::<f64>() / w.len() as f64,
-            )
-        })
-        .collect()
-}
-
-/// A fitted border curvature `s^2 (coef[0] + coef[1] s)`, `s = x + shift`, at 101 evenly spaced x over the
-/// range the border's `samples` (x, residual) cover (nothing when there are none: a curve is never drawn
-/// where the data do not reach).
-fn border_curve(coef: &[f64; 2], shift: f64, samples: &[(f64, f64)]) -> Vec<(f64, f64)> {
-    if samples.is_empty() {
-        return Vec::new();
-    }
-    let (xmin, xmax) = samples
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| {
-            (a.min(*x), b.max(*x))
-        });
-    (0..=100)
-        .map(|i| {
-            let x = xmin + (xmax - xmin) * i as f64 / 100.0;
-            let s = x + shift;
-            (x, s * s * (coef[0] + s * coef[1]))
-        })
-        .collect()
 }
 
 #[cfg(test)]
@@ -1024,22 +841,4 @@ mod tests {
         assert_eq!(params_text(&serde_json::json!(null)), "");
         assert_eq!(params_text(&serde_json::json!({})), "");
     }
-
-    /// The autocorrelation of AR processes by Yule-Walker: AR(1) with phi 0.5 has r(l) = 0.5^l; AR(2) with
-    /// phi (0.5, 0.3) has r(1) = phi1 / (1 - phi2) = 5/7 and r(2) = phi1 r(1) + phi2 = 23/35.
-    #[test]
-    fn ar_autocorrelation_by_yule_walker() {
-        let r = ar_acf(&[0.5], 3);
-        for (l, v) in r.iter().enumerate() {
-            assert!((v - 0.5f64.powi(l as i32 + 1)).abs() < 1e-12, "{r:?}");
-        }
-        let r = ar_acf(&[0.5, 0.3], 2);
-        assert!(
-            (r[0] - 5.0 / 7.0).abs() < 1e-12 && (r[1] - 23.0 / 35.0).abs() < 1e-12,
-            "{r:?}"
-        );
-    }
 }
-
-#[cfg(test)]
-mod mutation_tests;

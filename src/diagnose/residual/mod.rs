@@ -18,7 +18,24 @@
 //! | [`clipping`] | runs of y at its extremes | saturation |
 //! | [`extreme_increments`] | residual increments against model increments at the output's extremes | friction, saturation, curved-borders |
 //!
-//! The diagnosis uses exactly this map: `crate::diagnose::catalogue::EffectId::pointing_tests`.
+//! The diagnosis uses exactly this map: `crate::diagnose::effects::EffectId::pointing_tests`.
+
+/// Names of the residual tests (the `name` of their [`crate::diagnose::residual::Verdict`]).
+pub mod test_names {
+    pub const LJUNG_BOX: &str = "ljung-box";
+    pub const CROSS_CORRELATION: &str = "residual-input cross-correlation";
+    pub const BILLINGS: &str = "billings higher-order correlations";
+    pub const BY_MODE: &str = "residual by backlash mode";
+    pub const SINCE_REVERSAL: &str = "residual by time since reversal";
+    pub const AGAINST_X: &str = "residual against x_hat on the borders";
+    pub const DRIFT: &str = "drift (CUSUM by mode)";
+    pub const SPECTRUM_PEAK: &str = "residual spectrum peak";
+    pub const LATTICE: &str = "value lattice (quantization)";
+    pub const CLIPPING: &str = "clipping at the extremes";
+    pub const EXTREMES: &str = "incremental gain at the output extremes";
+}
+
+pub mod statistics;
 
 use crate::plant::Mode;
 use serde::Serialize;

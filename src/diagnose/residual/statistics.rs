@@ -75,7 +75,7 @@ pub fn input_line_ratio(u: &[f64], omega: f64) -> f64 {
     if u.len() < 8 {
         return 0.0;
     }
-    let (w, p) = super::residual::periodogram(u, true);
+    let (w, p) = crate::diagnose::residual::periodogram(u, true);
     let Some(med) = crate::stats::quantile(&p, 0.5) else {
         return 0.0;
     };

@@ -1,8 +1,15 @@
 //! Tests that pin behaviour a mutation sample found unchecked.
 
 use super::*;
-use crate::diagnose::model::tests::{input, paper_base, paper_record};
-use crate::diagnose::model::{Extension, Rest};
+use crate::diagnose::effects::EffectId;
+use crate::diagnose::effects::{coloured_noise, extra_delay, gap_drift, periodic, saturation};
+use crate::diagnose::fit::model::Rest;
+use crate::diagnose::fit::model::tests::{input, paper_base, paper_record};
+use crate::diagnose::fit::starts::StartContext;
+use crate::diagnose::residual::statistics::{INPUT_LINE_RATIO, input_line_ratio};
+use crate::diagnose::residual::test_names;
+use crate::diagnose::search::round::{Context, Current, find, judged_as_is};
+use std::time::Duration;
 
 /// A judged candidate's numbers on a record whose output is the paper model's plus 0.3 (n = 80, fit part 60):
 /// the held-out error is 0.3 on every sample, the fit RMSE sqrt(cost / 60), and the BIC
@@ -39,7 +46,7 @@ fn judge_adds_every_penalty_to_the_bic() {
     };
     let c = context(1.0)
         .judge(
-            EffectId::ExtraDelay,
+            extra_delay::ID,
             vec![],
             (model.clone(), 0.4, Objective::Simulation),
         )
@@ -60,7 +67,7 @@ fn judge_adds_every_penalty_to_the_bic() {
     assert!(!c.reason.contains("no valid step"), "{}", c.reason);
     let stuck = context(0.4)
         .judge(
-            EffectId::ExtraDelay,
+            extra_delay::ID,
             vec![],
             (model.clone(), 0.4, Objective::Simulation),
         )
@@ -69,7 +76,7 @@ fn judge_adds_every_penalty_to_the_bic() {
     // "Equal" is relative to the current cost: 1e-7 above a cost of 1e6 is within 1e-12 of it.
     let big = context(1e6)
         .judge(
-            EffectId::ExtraDelay,
+            extra_delay::ID,
             vec![],
             (model.clone(), 1e6 + 1e-7, Objective::Simulation),
         )
@@ -127,10 +134,7 @@ fn a_residual_line_the_input_carries_is_set_aside() {
     assert!(input_line_ratio(&u[..n_fit], 0.3) > INPUT_LINE_RATIO);
     let p = Problem::new(&u, &y, n_fit, LmOptions::default());
     let cfg = DiagnoseConfig::new(2, 0, 1);
-    let others: Vec<EffectId> = EffectId::ALL
-        .into_iter()
-        .filter(|id| *id != EffectId::PeriodicDisturbance)
-        .collect();
+    let others: Vec<EffectId> = EffectId::all().filter(|id| *id != periodic::ID).collect();
     let found = find(
         &p,
         &cfg,
@@ -236,13 +240,10 @@ fn candidate(id: EffectId, error_kind: &'static str, fit_cost: f64) -> Candidate
 /// winner extends the plain model.
 #[test]
 fn the_plain_model_is_refitted_from_an_extending_winner_twice_at_most() {
-    let mut winner = candidate(EffectId::GapDrift, SIMULATION, 1.0);
+    let mut winner = candidate(gap_drift::ID, SIMULATION, 1.0);
     winner.model.base.b = vec![0.7];
     let plain_winner = winner.clone();
-    winner.model = winner.model.with(Extension::GapDrift {
-        c1_rate: 1e-3,
-        c2_rate: 0.0,
-    });
+    winner.model = winner.model.with(gap_drift::extension(1e-3, 0.0));
     let start = refit_start(1, Some(&winner)).expect("round 1 refits");
     assert_eq!(start, EffectModel::plain(winner.model.base.clone()));
     assert!(refit_start(2, Some(&winner)).is_some());
@@ -256,16 +257,16 @@ fn the_plain_model_is_refitted_from_an_extending_winner_twice_at_most() {
 #[test]
 fn only_simulation_fits_of_the_same_effect_are_judged_again() {
     let fitted = [
-        candidate(EffectId::ColouredNoise, "one-step prediction", 1.0),
-        candidate(EffectId::GapDrift, SIMULATION, 2.0),
-        candidate(EffectId::ColouredNoise, SIMULATION, 3.0),
+        candidate(coloured_noise::ID, "one-step prediction", 1.0),
+        candidate(gap_drift::ID, SIMULATION, 2.0),
+        candidate(coloured_noise::ID, SIMULATION, 3.0),
     ];
     let found = |id| judged_as_is(&fitted, id).map(|c| c.fit_cost);
-    assert_eq!(found(EffectId::ColouredNoise), Some(3.0));
-    assert_eq!(found(EffectId::GapDrift), Some(2.0));
-    assert_eq!(found(EffectId::Saturation), None);
+    assert_eq!(found(coloured_noise::ID), Some(3.0));
+    assert_eq!(found(gap_drift::ID), Some(2.0));
+    assert_eq!(found(saturation::ID), None);
     assert_eq!(
-        judged_as_is(&fitted[..1], EffectId::ColouredNoise).map(|c| c.fit_cost),
+        judged_as_is(&fitted[..1], coloured_noise::ID).map(|c| c.fit_cost),
         None
     );
 }

@@ -1,6 +1,6 @@
 //! The decision rule: when an extension is supported, and which supported extension wins.
 
-use super::catalogue::EffectId;
+use crate::diagnose::effects::EffectId;
 
 /// The smallest relative fall of the held-out RMSE that counts (besides its significance): a change of the
 /// model that moves the error by less than 1% is no finding even when it is consistent.
@@ -96,48 +96,49 @@ fn short(v: f64) -> String {
     format!("{v:.4e}")
 }
 
-/// The log-count of the alternative structures a candidate searched (a uniform prior over them, the
-/// model-prior term of BIC): extra-delay tries 3 delays, linear-order 2 orders; the others fit one structure.
-/// The extra delay adds no continuous parameter, so without this term it would tie exactly with a longer b
-/// polynomial whose leading terms are zero.
+/// The model-prior term of BIC for effect `id` ([`crate::diagnose::effects::Effect::structure_penalty`]):
+/// the log-count of the alternative structures it searched (extra-delay tries 3 delays, linear-order 2
+/// orders; the others fit one structure). The extra delay adds no continuous parameter, so without this
+/// term it would tie exactly with a longer b polynomial whose leading terms are zero.
 pub fn structure_penalty(id: EffectId) -> f64 {
-    match id {
-        EffectId::ExtraDelay => 3f64.ln(),
-        EffectId::LinearOrder => 2f64.ln(),
-        _ => 0.0,
-    }
+    id.effect().structure_penalty()
 }
 
 /// The winner among judged candidates `(id, supported, bic)`: the supported deterministic extension with the
-/// lowest BIC, else supported coloured-noise, else none. Returns its index.
+/// lowest BIC, else a supported noise model, else none. A winner that yields to another supported effect
+/// ([`crate::diagnose::effects::Effect::yields_to`]: linear-order to extra-delay) gives way to it unless its
+/// BIC is lower by at least [`ALIAS_BIC`]. Returns its index.
 pub fn choose(candidates: &[(EffectId, bool, f64)]) -> Option<usize> {
     let best_of = |deterministic: bool| {
         candidates
             .iter()
             .enumerate()
-            .filter(|(_, (id, ok, _))| *ok && (*id != EffectId::ColouredNoise) == deterministic)
+            .filter(|(_, (id, ok, _))| *ok && id.effect().is_noise_model() != deterministic)
             .min_by(|a, b| a.1.2.total_cmp(&b.1.2))
             .map(|(i, _)| i)
     };
-    let delay = candidates
-        .iter()
-        .position(|(id, ok, _)| *id == EffectId::ExtraDelay && *ok);
-    match (best_of(true), delay) {
-        (Some(b), Some(d)) if candidates[b].0 == EffectId::LinearOrder => {
-            Some(if candidates[d].2 < candidates[b].2 + ALIAS_BIC {
-                d
-            } else {
-                b
-            })
-        }
-        (Some(b), _) => Some(b),
-        (None, _) => best_of(false),
-    }
+    let Some(b) = best_of(true) else {
+        return best_of(false);
+    };
+    let alias = candidates[b].0.effect().yields_to().and_then(|other| {
+        candidates
+            .iter()
+            .position(|(id, ok, _)| *id == other && *ok)
+    });
+    Some(match alias {
+        Some(d) if candidates[d].2 < candidates[b].2 + ALIAS_BIC => d,
+        _ => b,
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::diagnose::effects::{
+        coloured_noise::ID as ColouredNoise, extra_delay::ID as ExtraDelay,
+        friction::ID as Friction, gap_drift::ID as GapDrift, linear_order::ID as LinearOrder,
+        saturation::ID as Saturation,
+    };
 
     fn ev(after: f64, z: f64, delta_bic: f64) -> Evidence {
         Evidence {
@@ -208,14 +209,13 @@ mod tests {
 
     #[test]
     fn penalties_are_the_log_counts() {
-        assert_eq!(structure_penalty(EffectId::ExtraDelay), 3f64.ln());
-        assert_eq!(structure_penalty(EffectId::LinearOrder), 2f64.ln());
-        assert_eq!(structure_penalty(EffectId::Friction), 0.0);
+        assert_eq!(structure_penalty(ExtraDelay), 3f64.ln());
+        assert_eq!(structure_penalty(LinearOrder), 2f64.ln());
+        assert_eq!(structure_penalty(Friction), 0.0);
     }
 
     #[test]
     fn deterministic_before_noise_and_lowest_bic_wins() {
-        use EffectId::*;
         assert_eq!(choose(&[]), None);
         assert_eq!(choose(&[(GapDrift, false, -10.0)]), None);
         assert_eq!(
@@ -238,7 +238,6 @@ mod tests {
 
     #[test]
     fn extra_delay_wins_over_a_linear_order_that_is_not_strongly_better() {
-        use EffectId::*;
         let c = |lo: f64, de: f64, de_ok: bool| {
             choose(&[
                 (LinearOrder, true, lo),

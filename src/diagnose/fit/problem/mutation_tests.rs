@@ -1,7 +1,7 @@
 //! Tests that pin behaviour a mutation sample found unchecked.
 
 use super::*;
-use crate::diagnose::model::tests::{paper_base, paper_record};
+use crate::diagnose::fit::model::tests::{paper_base, paper_record};
 
 /// The divergence bound is 1e4 (1 + max|u| + max|y|), the maxima taken over absolute values:
 /// with max|u| = 2 (a negative sample) and max|y| = 3 (a negative sample), 1e4 * (1 + 2 + 3) = 60 000.

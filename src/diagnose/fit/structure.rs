@@ -19,10 +19,9 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::engine::min_samples;
-use super::fit::LmOptions;
-use super::model::{EffectModel, Rest};
-use super::problem::{Problem, fit_linear, fit_plain, linear_base, stabilize};
+use crate::diagnose::fit::lm::LmOptions;
+use crate::diagnose::fit::model::{EffectModel, Rest};
+use crate::diagnose::fit::problem::{Problem, fit_linear, fit_plain, linear_base, stabilize};
 use crate::plant::{MAX_DELAY, MAX_ORDER};
 use crate::stats::{below_by, rms_diff};
 
@@ -351,6 +350,11 @@ fn decide(c: &[StructureCandidate]) -> (Structure, String) {
         )
     };
     (chosen, reason)
+}
+
+/// The fewest samples a structure needs: 100 plus 20 per order and delay sample.
+pub fn min_samples(s: &Structure) -> usize {
+    100 + 20 * (s.na + s.nb + s.delay)
 }
 
 #[cfg(test)]

@@ -1,0 +1,16 @@
+//! Fitting: the models the diagnosis fits and how it fits them.
+//!
+//! - [`model`]: the declared model and the extensions added to it, simulated over a record.
+//! - [`problem`]: a record split into a fit part and a held-out part, and the fits on it (the linear model,
+//!   the plain backlash model, any extended model from its starts).
+//! - [`starts`]: what a candidate's fit starts from (the [`starts::Plan`] an effect returns).
+//! - [`structure`]: the choice of orders, delay and initial state when they are not declared.
+//! - [`lm`]: the bounded Levenberg-Marquardt fitter, costs, BIC and covariances.
+//!
+//! Nothing here names an effect: an extension's behaviour comes from its effect (`crate::diagnose::effects`).
+
+pub mod lm;
+pub mod model;
+pub mod problem;
+pub mod starts;
+pub mod structure;

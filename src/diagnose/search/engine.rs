@@ -1,0 +1,468 @@
+//! # Diagnosis: which effects does the model lack?
+//!
+//! `backlash diagnose FILE [--na N --nb N --delay D]` answers with the ids of the catalogue the record shows,
+//! in the order they were found (or `null`), and the evidence for each. The procedure ([`diagnose`]):
+//!
+//! 1. **Split.** The first 70% of the record fit the models; the last 30% are held out and only judge them.
+//!    Every model is simulated over the whole record from rest, so the held-out part starts from the state
+//!    the fit part left (nothing is re-initialised at the split). Every error called "held-out RMSE" below
+//!    is this free-run simulation error.
+//! 2. **Structure.** Declared orders and delay win; without them `structure::select` chooses them
+//!    on the fit part only (see there).
+//! 3. **Fit the linear model and the backlash model.** The best linear output-error model of the structure
+//!    (backlash replaced by a straight line through an offset, which is the backlash with c1 = -c2 and
+//!    m2 = m1) is fitted first; the backlash model (m1 = 1) is fitted by Levenberg-Marquardt ([`crate::diagnose::fit::lm`])
+//!    on the simulated output from MRGIA (recommended setting), from an equation-error least-squares fit,
+//!    from the linear model, and from a start without dynamics; then 3 perturbed restarts. Its fit-part cost
+//!    is never above the linear model's (the linear model is one of its points; if the fit ends higher, the
+//!    linear model is taken). Parameters whose simulation is not a valid plant are refused: an unstable
+//!    linear block, m2 <= 0, or a backlash whose memory zone is inverted where the record takes it (there
+//!    the contract's rule flips between the borders every sample, a chatter a fit would otherwise exploit).
+//!    Whether the data support the backlash is said plainly: its play c1 + c2 with a standard error from the
+//!    fit's information matrix, and its held-out error against the linear model's.
+//! 4. **Test the residual** e = y - y_model **of the fit part** with the tests of [`crate::diagnose::residual`].
+//!    Each test that rejects points to the effects of [`EffectId::pointing_tests`]; those are the
+//!    **candidates**. A residual spectrum peak at a frequency the input carries
+//!    ([`crate::diagnose::residual::statistics::input_line_ratio`] above [`crate::diagnose::residual::statistics::INPUT_LINE_RATIO`]) is model error
+//!    driven by the input, not a disturbance: it then does not make `periodic-disturbance` a candidate.
+//! 5. **Fit each candidate extension** (current model + the effect's own parameters, all fitted jointly on
+//!    the fit part, from the starts of [`crate::diagnose::fit::starts`]), on all cores; the result does not depend on the
+//!    number of threads.
+//! 6. **Decide** by [`crate::diagnose::search::decision`]: supported when the held-out error falls by at least 1%,
+//!    significantly (Diebold-Mariano), and BIC on the fit part is lower; the lowest BIC among supported
+//!    deterministic extensions wins, coloured-noise only when none is supported. If the winner's own base
+//!    part fits the plain model better than the plain fit did (that fit stopped in a local minimum), the
+//!    plain model refitted from there becomes "before" (at most twice), so that it is an honest optimum, and
+//!    the round is judged again against it (the candidates already fitted are judged as they are).
+//!
+//! 7. **Loop**: the winner becomes the current model and steps 4 to 6 repeat on its residual:
+//!    the candidates are fitted on top of it (all parameters, the earlier effects' too, jointly: the last
+//!    round's fit is the joint refit of every effect found), judged against it by the same rule, and the
+//!    lowest BIC among the supported ones is kept. Each effect is added at most once; a noise model ends
+//!    the loop (it describes what the deterministic part leaves); friction with the play inside its spring
+//!    and curved borders are never combined (that element has straight borders). The loop stops when no
+//!    candidate is supported, after `max_effects` effects (default 3) or when the time budget is spent.
+//!    On a clean record the first round finds nothing, so the loop adds no false positive there; on a
+//!    single-effect record the second round judges a residual that has no structure left, as the first
+//!    round does on a clean record.
+//!
+//! "before" is the declared model's held-out RMSE, "after" the final model's simulation RMSE (equal to
+//! "before" for `null`). **coloured-noise is judged by prediction:** its evidence is the one-step-ahead
+//! prediction error `y(k) - [s(k) + sum_i phi_i (y(k-i) - s(k-i))]` (s the simulated output) against the
+//! plain model's, whose predictor is its simulation; those two numbers are reported as `one_step` beside
+//! the simulation errors, never in their place.
+//!
+//! ## Cost and bounds
+//!
+//! Exploration (screening a grid of starts, short runs from each) uses the first [`EXPLORE_SAMPLES`]
+//! samples of the fit part; only the best start is refined on the whole fit part, and that refinement stops
+//! when its step is below 0.1 standard errors (as `identify oe` does) or after a few iterations, so a long
+//! record costs a few simulations of its whole length per candidate. A candidate with several structures
+//! (longer delays, higher orders, friction's two forms) refines only the best of them on the window. Every
+//! fit is bounded in iterations and simulations, and the whole diagnosis by a time budget ([`DiagnoseConfig::time_budget`]): candidates not fitted when it is
+//! spent are listed as not tried.
+//!
+//! ## Why no constant offset
+//!
+//! A constant output offset d is not in the catalogue: with straight borders it is absorbed exactly into
+//! the gaps, m1 (x - c1) + d = m1 (x - (c1 - d/m1)) and m2 (x + c2) + d = m2 (x + (c2 + d/m2)), so the
+//! declared model already contains it and no data can show it (test
+//! `constant_offset_is_absorbed_into_the_gaps`). An input offset passes the linear block as a constant and
+//! is absorbed the same way. This is also why the fitted gaps may be negative: only c1 + c2 (the play)
+//! must not be.
+
+use std::time::Instant;
+
+use crate::diagnose::effects::CATALOGUE;
+use crate::diagnose::fit::lm::{LmOptions, bic, cost_of};
+use crate::diagnose::fit::model::{BaseModel, EffectModel, Objective};
+pub use crate::diagnose::fit::problem::EXPLORE_SAMPLES;
+use crate::diagnose::fit::problem::{Problem, fit_linear, fit_plain};
+use crate::diagnose::fit::structure::{
+    self, InitialState, Structure, StructureChoice, min_samples,
+};
+use crate::diagnose::residual;
+use crate::diagnose::search::decision;
+pub use crate::diagnose::search::diagnosis::*;
+pub use crate::diagnose::search::round::usable_lags;
+use crate::diagnose::search::round::{Current, find};
+use crate::plant::{MAX_DELAY, MAX_ORDER};
+use crate::stats::{below_by, rms, rms_diff, std_dev};
+
+/// The fraction by which a refit of the plain model must lower its cost to replace it.
+const REFIT_GAIN: f64 = 1e-6;
+
+/// Diagnose the record (u, y): choose or take the structure, fit, test, extend, decide.
+pub fn diagnose(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<Diagnosis, DiagnoseError> {
+    diagnose_with_progress(u, y, cfg, &|_| {})
+}
+
+/// [`diagnose`], telling `progress` what it is doing at each stage (a sentence such as "fitting the
+/// candidates of round 1 (3 of 8 done)"); `progress` may be called from any thread.
+pub fn diagnose_with_progress(
+    u: &[f64],
+    y: &[f64],
+    cfg: &DiagnoseConfig,
+    progress: &(dyn Fn(&str) + Sync),
+) -> Result<Diagnosis, DiagnoseError> {
+    check_record(u, y, cfg)?;
+    let mut problem = problem_of(u, y, cfg, progress)?;
+    progress("choosing the initial state");
+    let initial = structure::initial_state(
+        &problem,
+        &match cfg.structure {
+            Some(s) => vec![s],
+            None => structure::grid(cfg.max_delay, problem.n_fit, u.len()),
+        },
+    );
+    problem.rest = initial.rest_for(u[0]);
+    let choice = match cfg.structure {
+        Some(s) => StructureChoice::declared(s),
+        None => {
+            progress("choosing the structure (orders and delay)");
+            structure::select(&problem, cfg.max_delay, u.len())
+        }
+    };
+    let s = choice.chosen;
+    progress(&format!("fitting the linear model ({s})"));
+    let linear = fit_linear(&problem, s).ok_or(DiagnoseError::NoFit)?;
+    progress(&format!("fitting the backlash model ({s})"));
+    let base =
+        fit_plain(&problem, s, cfg.restarts, cfg.seed, &linear).ok_or(DiagnoseError::NoFit)?;
+    let mut d = rounds_from(&mut problem, cfg, base, &linear, choice, &initial)?;
+    extend(&problem, cfg, &mut d);
+    Ok(d)
+}
+
+/// The record as a fitting problem: the fit part's length from the fit fraction, every fit bounded by the
+/// time budget; refused when the record is too short for the declared structure (or the smallest one).
+fn problem_of<'a>(
+    u: &'a [f64],
+    y: &'a [f64],
+    cfg: &DiagnoseConfig,
+    progress: &'a (dyn Fn(&str) + Sync),
+) -> Result<Problem<'a>, DiagnoseError> {
+    let n = u.len();
+    let smallest = Structure {
+        na: 0,
+        nb: 0,
+        delay: 1,
+    };
+    let needed = cfg.structure.as_ref().unwrap_or(&smallest);
+    if n < min_samples(needed) {
+        return Err(DiagnoseError::TooShort {
+            n,
+            min: min_samples(needed),
+        });
+    }
+    let lm = LmOptions {
+        deadline: Some(Instant::now() + cfg.time_budget),
+        ..cfg.lm
+    };
+    let n_fit = ((n as f64 * cfg.fit_fraction).round() as usize).clamp(1, n - 1);
+    Ok(Problem {
+        progress,
+        ..Problem::new(u, y, n_fit, lm)
+    })
+}
+
+/// The first round from the plain fit `base` (model and fit-part cost). A winner whose own base part fits
+/// the plain model better means the plain fit stopped in a local minimum: the plain model refitted from
+/// there (at most twice) becomes "before", so that it is an honest optimum, and the round is judged again
+/// against it. The candidates already fitted are fits of their own structures whatever the plain model is:
+/// they are judged again as they are, not refitted.
+fn rounds_from(
+    problem: &mut Problem,
+    cfg: &DiagnoseConfig,
+    mut base: (EffectModel, f64),
+    linear: &(BaseModel, f64),
+    choice: StructureChoice,
+    initial: &InitialState,
+) -> Result<Diagnosis, DiagnoseError> {
+    let mut fitted: Vec<Candidate> = Vec::new();
+    let mut rounds = 0;
+    loop {
+        rounds += 1;
+        let mut d = diagnose_from(
+            problem,
+            cfg,
+            base.0.clone(),
+            linear,
+            choice.clone(),
+            initial,
+            (rounds, &fitted),
+        )?;
+        if let Some(start) = refit_start(rounds, d.effect())
+            && let Some((polished, cost)) =
+                problem.fit(&start, std::slice::from_ref(&start), Objective::Simulation)
+            // Lower by more than one part in a million: a refit that only matches the plain model up to the
+            // optimiser's tolerance is no better.
+            && below_by(cost, base.1, REFIT_GAIN)
+        {
+            base = (polished, cost);
+            fitted = std::mem::take(&mut d.candidates);
+            continue;
+        }
+        return Ok(d);
+    }
+}
+
+/// Refits of the plain model from a winner's base part, at most.
+const MAX_REFITS: usize = 2;
+
+/// The plain model to refit from after round `rounds` (counted from 1): the winner's own base part, when it
+/// extends the plain model and fewer than [`MAX_REFITS`] refits have run.
+fn refit_start(rounds: usize, winner: Option<&Candidate>) -> Option<EffectModel> {
+    let c = winner.filter(|c| rounds <= MAX_REFITS && !c.model.exts.is_empty())?;
+    Some(EffectModel::plain(c.model.base.clone()))
+}
+
+/// The loop after the first round: while the last round kept an effect, the extended model becomes the
+/// current one; its residual is tested, the candidates it points to are fitted on top of it (every
+/// parameter, old and new, jointly) and judged by the same rule. Stops when nothing is supported, after
+/// `max_effects` effects, after a noise model (it describes what the deterministic part leaves) or when
+/// the time budget is spent.
+fn extend(p: &Problem, cfg: &DiagnoseConfig, d: &mut Diagnosis) {
+    let Some(first) = d.effect() else {
+        d.stopped = "no effect is supported by the plain model's residual".into();
+        return;
+    };
+    let mut kept = vec![first.id];
+    let mut last = first.clone();
+    loop {
+        if kept.len() >= cfg.max_effects {
+            d.stopped = format!(
+                "{} effects found: the most allowed (--max-effects)",
+                kept.len()
+            );
+            return;
+        }
+        if last.model.noise().is_some() {
+            d.stopped =
+                "a noise model was kept: it describes what the deterministic part leaves".into();
+            return;
+        }
+        if p.out_of_time() {
+            d.stopped = "the time budget is spent".into();
+            return;
+        }
+        let penalty: f64 = kept.iter().map(|&id| decision::structure_penalty(id)).sum();
+        let e: Vec<f64> = p.y.iter().zip(&last.sim.y).map(|(a, b)| a - b).collect();
+        let cost = cost_of(&e[..p.n_fit]);
+        let found = find(
+            p,
+            cfg,
+            Current {
+                model: &last.model,
+                sim: &last.sim,
+                e: &e,
+                cost,
+                bic: last.bic,
+                penalty,
+                exclude: &kept,
+                fitted: &[],
+            },
+        );
+        let next = found.chosen.map(|i| found.candidates[i].clone());
+        d.later.push(Round {
+            current: last.model.clone(),
+            current_heldout_rmse: last.heldout_rmse,
+            current_bic: last.bic,
+            found,
+        });
+        match next {
+            Some(c) => {
+                kept.push(c.id);
+                last = c;
+            }
+            None => {
+                d.stopped = format!(
+                    "no further effect is supported by the residual of the model with {}",
+                    kept.iter()
+                        .map(|id| id.as_str())
+                        .collect::<Vec<_>>()
+                        .join(" + ")
+                );
+                return;
+            }
+        }
+    }
+}
+
+fn check_record(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<(), DiagnoseError> {
+    if u.len() != y.len() {
+        return Err(DiagnoseError::Length {
+            u: u.len(),
+            y: y.len(),
+        });
+    }
+    if let Some(k) = u
+        .iter()
+        .zip(y)
+        .position(|(a, b)| !a.is_finite() || !b.is_finite())
+    {
+        return Err(DiagnoseError::NonFinite(k));
+    }
+    if let Some(s) = &cfg.structure {
+        if s.na > MAX_ORDER || s.nb > MAX_ORDER {
+            return Err(DiagnoseError::Structure(format!(
+                "na = {}, nb = {}: each must be between 0 and {MAX_ORDER}",
+                s.na, s.nb
+            )));
+        }
+        if s.delay < 1 || s.delay > MAX_DELAY {
+            return Err(DiagnoseError::Structure(format!(
+                "delay = {}: must be between 1 and {MAX_DELAY}",
+                s.delay
+            )));
+        }
+    }
+    if cfg.max_delay < 1 || cfg.max_delay > MAX_DELAY {
+        return Err(DiagnoseError::Structure(format!(
+            "the longest delay to try ({}) must be between 1 and {MAX_DELAY}",
+            cfg.max_delay
+        )));
+    }
+    if !(0.3..=0.95).contains(&cfg.fit_fraction) {
+        return Err(DiagnoseError::Fraction(cfg.fit_fraction));
+    }
+    if cfg.time_budget.is_zero() {
+        return Err(DiagnoseError::Budget);
+    }
+    if !(1..=CATALOGUE.len()).contains(&cfg.max_effects) {
+        return Err(DiagnoseError::MaxEffects(cfg.max_effects));
+    }
+    Ok(())
+}
+
+/// The linear model's fit and held-out errors over the record.
+fn linear_fit(p: &Problem, linear: &(BaseModel, f64)) -> LinearFit {
+    let n = p.u.len();
+    let output = EffectModel::plain(linear.0.clone())
+        .simulate(p.u, p.rest, n, p.limit)
+        .map_or_else(|| vec![f64::NAN; n], |s| s.y);
+    LinearFit {
+        model: linear.0.clone(),
+        fit_rmse: (linear.1 / p.n_fit as f64).sqrt(),
+        heldout_rmse: rms_diff(&p.y[p.n_fit..], &output[p.n_fit..]),
+        output,
+    }
+}
+
+/// The standard error of the sum of parameters `j` and `k` from their covariance matrix:
+/// `sqrt(var_j + var_k + 2 cov_jk)` (0 where rounding makes the variance negative).
+fn sum_std_error(cov: &nalgebra::DMatrix<f64>, j: usize, k: usize) -> f64 {
+    (cov[(j, j)] + cov[(k, k)] + 2.0 * cov[(j, k)])
+        .max(0.0)
+        .sqrt()
+}
+
+/// The plain model's play with its standard error, and the verdict against the linear model.
+fn backlash_support(
+    p: &Problem,
+    base: &BaseModel,
+    base_heldout: f64,
+    linear: &LinearFit,
+) -> BacklashSupport {
+    let cov = p.plain_covariance(base);
+    let i = base.na + base.nb + 1;
+    let se = |j: usize| cov.as_ref().map(|c| c[(j, j)].max(0.0).sqrt());
+    let play = base.c1 + base.c2;
+    let play_se = cov.as_ref().map(|c| sum_std_error(c, i + 1, i + 2));
+    let significant = play_se.is_some_and(|s| play > residual::Z95 * s);
+    let better = base_heldout < linear.heldout_rmse;
+    let play_text = match play_se {
+        Some(s) => format!("play c1 + c2 = {play:.4e} +/- {s:.2e} (standard error)"),
+        None => format!(
+            "play c1 + c2 = {play:.4e} (no standard error: the record does not determine the gaps)"
+        ),
+    };
+    let errors = format!(
+        "held-out error {base_heldout:.4e} with backlash against {:.4e} for the linear model",
+        linear.heldout_rmse
+    );
+    let verdict = match (significant, better) {
+        (true, true) => format!("backlash is supported by the data: {play_text}, {errors}"),
+        (false, _) => format!(
+            "backlash is not supported by the data: the {play_text} is not significantly above zero ({errors})"
+        ),
+        (true, false) => format!(
+            "backlash is not supported by the data: the {play_text} is significant on the fit part but the \
+             {errors} (a straight line predicts as well)"
+        ),
+    };
+    BacklashSupport {
+        play,
+        play_se,
+        c1_se: se(i + 1),
+        c2_se: se(i + 2),
+        m2_se: se(i),
+        supported: significant && better,
+        verdict,
+    }
+}
+
+fn diagnose_from(
+    p: &mut Problem,
+    cfg: &DiagnoseConfig,
+    base: EffectModel,
+    linear: &(BaseModel, f64),
+    structure: StructureChoice,
+    initial: &InitialState,
+    (rounds, fitted): (usize, &[Candidate]),
+) -> Result<Diagnosis, DiagnoseError> {
+    let (u, y, n_fit) = (p.u, p.y, p.n_fit);
+    let n = u.len();
+    let base_sim = base
+        .simulate(u, p.rest, n, p.limit)
+        .ok_or(DiagnoseError::NoFit)?;
+    p.x_scale = std_dev(&base_sim.x[..n_fit]).max(1e-12);
+    let e: Vec<f64> = y.iter().zip(&base_sim.y).map(|(a, b)| a - b).collect();
+    let base_cost = cost_of(&e[..n_fit]);
+    let base_k = base.n_estimated();
+    let base_bic = bic(base_cost, n_fit, base_k);
+    let base_heldout_rmse = rms(e[n_fit..].iter().copied());
+    let linear = linear_fit(p, linear);
+    let backlash = backlash_support(p, &base.base, base_heldout_rmse, &linear);
+
+    let found = find(
+        p,
+        cfg,
+        Current {
+            model: &base,
+            sim: &base_sim,
+            e: &e,
+            cost: base_cost,
+            bic: base_bic,
+            penalty: 0.0,
+            exclude: &[],
+            fitted,
+        },
+    );
+    Ok(Diagnosis {
+        config: *cfg,
+        n,
+        n_fit,
+        structure,
+        initial: initial.clone(),
+        linear,
+        base_k,
+        base_fit_rmse: (base_cost / n_fit as f64).sqrt(),
+        base_bic,
+        base_heldout_rmse,
+        base,
+        base_sim,
+        backlash,
+        tests: found.tests,
+        set_aside: found.set_aside,
+        candidates: found.candidates,
+        not_tried: found.not_tried,
+        chosen: found.chosen,
+        base_rounds: rounds,
+        later: Vec::new(),
+        stopped: String::new(),
+    })
+}
+
+#[cfg(test)]
+mod mutation_tests;

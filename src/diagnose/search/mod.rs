@@ -1,0 +1,8 @@
+//! The loop: the engine that fits the declared model and adds effects one after another ([`engine`]), one
+//! round of it ([`round`]: test the residual, fit the candidates it points to, judge, choose), the decision
+//! rule ([`decision`]) and what a diagnosis finds ([`diagnosis`]).
+
+pub mod decision;
+pub mod diagnosis;
+pub mod engine;
+pub mod round;
