@@ -990,7 +990,21 @@ pub fn fit(cfg: &OeConfig, u: &[f64], y: &[f64]) -> Result<OeFit, OeError> {
     } else {
         None
     };
-    fit_from(cfg, u, y, &study::default_starts(rec, paper))
+    fit_from(cfg, u, y, &default_starts(rec, paper))
+}
+
+/// The starts of [`fit`] from the two MRGIA estimates (the on-line estimator's start and the study use them
+/// too).
+fn default_starts(rec: Estimate, paper: Option<Estimate>) -> Vec<(&'static str, Estimate)> {
+    let mut starts = vec![("mrgia-recommended", rec.clone())];
+    if let Some(paper) = paper {
+        starts.push(("mrgia-paper", paper));
+        let mut half = rec;
+        half.c1 *= 0.5;
+        half.c2 *= 0.5;
+        starts.push(("mrgia-recommended-half-gaps", half));
+    }
+    starts
 }
 
 /// Output-error fit from given starting points (name, estimate), keeping the lowest cost. The estimates

@@ -75,8 +75,8 @@
 //! - `lambda + psi^T P psi` not finite and positive: the update is refused.
 
 use super::{
-    M2_MIN, MAX_P, OeConfig, SimState, StdErr, Theta, fit_from, info_matrix, inverse_information,
-    normal_equations, param_names, propagate_state, study::default_starts,
+    M2_MIN, MAX_P, OeConfig, SimState, StdErr, Theta, default_starts, fit_from, info_matrix,
+    inverse_information, normal_equations, param_names, propagate_state,
 };
 use crate::identify::mrgia::{self, Estimate, Mrgia, MrgiaConfig, StepResult};
 use crate::plant::ParamError;

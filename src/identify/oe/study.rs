@@ -16,8 +16,8 @@
 //! cells are collected in grid order, so the result does not depend on the number of threads.
 
 use super::online::Refined;
-use super::{OeConfig, OeFit, crb, fit_from, param_names, theta_of};
-use crate::identify::mrgia::{Estimate, Mrgia, MrgiaConfig, paper_input};
+use super::{OeConfig, OeFit, crb, default_starts, fit_from, param_names, theta_of};
+use crate::identify::mrgia::{Mrgia, MrgiaConfig, paper_input};
 use crate::plant::{Plant, PlantParams};
 use crate::report::plot::{Panel, PlotError, Series, grid_plot};
 use crate::stats::std_dev;
@@ -466,22 +466,6 @@ fn median(v: &[f64]) -> f64 {
     } else {
         s[m]
     }
-}
-
-/// The starts of [`super::fit`] from the two MRGIA estimates.
-pub(super) fn default_starts(
-    rec: Estimate,
-    paper: Option<Estimate>,
-) -> Vec<(&'static str, Estimate)> {
-    let mut starts = vec![("mrgia-recommended", rec.clone())];
-    if let Some(paper) = paper {
-        starts.push(("mrgia-paper", paper));
-        let mut half = rec;
-        half.c1 *= 0.5;
-        half.c2 *= 0.5;
-        starts.push(("mrgia-recommended-half-gaps", half));
-    }
-    starts
 }
 
 /// One N of one run: the estimates of the two MRGIA settings, refine's estimate and standard errors (when
