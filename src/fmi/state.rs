@@ -1,16 +1,21 @@
-//! The FMI 2.0 co-simulation state machine: which function may be called in which state.
+//! The instance's state machine, for both protocols: the states of a co-simulation instance, and what a
+//! protocol's function must tell the core about itself ([`Api`]): its C name, the states its standard allows
+//! it in (the per-version tables are `crate::fmi2::state` and `crate::fmi3::state`), and how the protocol
+//! codes a [`Status`].
 //!
-//! The table is that of the standard (FMI 2.0.x, section 4.2.4, "state machine of calling sequence from
-//! master to slave"), written as a match so that a missing case is a compile error. `StepInProgress` and
-//! `StepCanceled` exist in the standard for asynchronous steps; this implementation steps synchronously, so
-//! an instance is never observed in them, but the table keeps them for completeness.
+//! The states are those of the FMI 2.0 co-simulation table; FMI 3.0's states without event or configuration
+//! mode are the same ones under other names (its step mode is [`State::StepComplete`]). `StepInProgress` and
+//! `StepCanceled` exist in FMI 2.0 for asynchronous steps; steps here are synchronous, so an instance is never
+//! observed in them, but the tables keep them for completeness.
 
-use super::instance::Api;
+use super::status::Status;
+use std::panic::{RefUnwindSafe, UnwindSafe};
 
 /// The states of a co-simulation slave.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum State {
-    /// Before fmi2Instantiate and after fmi2FreeInstance (there is no instance then; used by the table).
+    /// Before the instantiate function and after the free function (there is no instance then; used by the
+    /// tables).
     StartEnd,
     Instantiated,
     InitializationMode,
@@ -53,209 +58,16 @@ impl State {
     }
 }
 
-/// Every function of the FMI 2.0 co-simulation API.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Call {
-    GetTypesPlatform,
-    GetVersion,
-    SetDebugLogging,
-    Instantiate,
-    FreeInstance,
-    SetupExperiment,
-    EnterInitializationMode,
-    ExitInitializationMode,
-    Terminate,
-    Reset,
-    GetReal,
-    GetInteger,
-    GetBoolean,
-    GetString,
-    SetReal,
-    SetInteger,
-    SetBoolean,
-    SetString,
-    GetFmuState,
-    SetFmuState,
-    FreeFmuState,
-    SerializedFmuStateSize,
-    SerializeFmuState,
-    DeSerializeFmuState,
-    GetDirectionalDerivative,
-    SetRealInputDerivatives,
-    GetRealOutputDerivatives,
-    DoStep,
-    CancelStep,
-    GetStatus,
-    GetRealStatus,
-    GetIntegerStatus,
-    GetBooleanStatus,
-    GetStringStatus,
-}
-
-impl Call {
-    pub const ALL: [Call; 34] = [
-        Call::GetTypesPlatform,
-        Call::GetVersion,
-        Call::SetDebugLogging,
-        Call::Instantiate,
-        Call::FreeInstance,
-        Call::SetupExperiment,
-        Call::EnterInitializationMode,
-        Call::ExitInitializationMode,
-        Call::Terminate,
-        Call::Reset,
-        Call::GetReal,
-        Call::GetInteger,
-        Call::GetBoolean,
-        Call::GetString,
-        Call::SetReal,
-        Call::SetInteger,
-        Call::SetBoolean,
-        Call::SetString,
-        Call::GetFmuState,
-        Call::SetFmuState,
-        Call::FreeFmuState,
-        Call::SerializedFmuStateSize,
-        Call::SerializeFmuState,
-        Call::DeSerializeFmuState,
-        Call::GetDirectionalDerivative,
-        Call::SetRealInputDerivatives,
-        Call::GetRealOutputDerivatives,
-        Call::DoStep,
-        Call::CancelStep,
-        Call::GetStatus,
-        Call::GetRealStatus,
-        Call::GetIntegerStatus,
-        Call::GetBooleanStatus,
-        Call::GetStringStatus,
-    ];
-
+/// A function of a protocol's API, as the instance's state machine sees it (FMI 2.0's
+/// `crate::fmi2::state::Call`, FMI 3.0's `crate::fmi3::state::Call`).
+pub trait Api: Copy + UnwindSafe + RefUnwindSafe {
+    /// The C type the protocol's functions return their status in.
+    type Code: Copy;
     /// The C name of the function.
-    pub fn name(self) -> &'static str {
-        <Self as Api>::name(self)
-    }
-
-    /// Whether the standard allows this call in state `s`.
-    pub fn allowed_in(self, s: State) -> bool {
-        <Self as Api>::allowed_in(self, s)
-    }
-}
-
-impl Api for Call {
-    fn name(self) -> &'static str {
-        match self {
-            Call::GetTypesPlatform => "fmi2GetTypesPlatform",
-            Call::GetVersion => "fmi2GetVersion",
-            Call::SetDebugLogging => "fmi2SetDebugLogging",
-            Call::Instantiate => "fmi2Instantiate",
-            Call::FreeInstance => "fmi2FreeInstance",
-            Call::SetupExperiment => "fmi2SetupExperiment",
-            Call::EnterInitializationMode => "fmi2EnterInitializationMode",
-            Call::ExitInitializationMode => "fmi2ExitInitializationMode",
-            Call::Terminate => "fmi2Terminate",
-            Call::Reset => "fmi2Reset",
-            Call::GetReal => "fmi2GetReal",
-            Call::GetInteger => "fmi2GetInteger",
-            Call::GetBoolean => "fmi2GetBoolean",
-            Call::GetString => "fmi2GetString",
-            Call::SetReal => "fmi2SetReal",
-            Call::SetInteger => "fmi2SetInteger",
-            Call::SetBoolean => "fmi2SetBoolean",
-            Call::SetString => "fmi2SetString",
-            Call::GetFmuState => "fmi2GetFMUstate",
-            Call::SetFmuState => "fmi2SetFMUstate",
-            Call::FreeFmuState => "fmi2FreeFMUstate",
-            Call::SerializedFmuStateSize => "fmi2SerializedFMUstateSize",
-            Call::SerializeFmuState => "fmi2SerializeFMUstate",
-            Call::DeSerializeFmuState => "fmi2DeSerializeFMUstate",
-            Call::GetDirectionalDerivative => "fmi2GetDirectionalDerivative",
-            Call::SetRealInputDerivatives => "fmi2SetRealInputDerivatives",
-            Call::GetRealOutputDerivatives => "fmi2GetRealOutputDerivatives",
-            Call::DoStep => "fmi2DoStep",
-            Call::CancelStep => "fmi2CancelStep",
-            Call::GetStatus => "fmi2GetStatus",
-            Call::GetRealStatus => "fmi2GetRealStatus",
-            Call::GetIntegerStatus => "fmi2GetIntegerStatus",
-            Call::GetBooleanStatus => "fmi2GetBooleanStatus",
-            Call::GetStringStatus => "fmi2GetStringStatus",
-        }
-    }
-
-    fn allowed_in(self, s: State) -> bool {
-        use State::*;
-        match self {
-            Call::GetTypesPlatform | Call::GetVersion => s != Fatal,
-            Call::SetDebugLogging => !matches!(s, StartEnd | Fatal),
-            Call::Instantiate => s == StartEnd,
-            Call::FreeInstance
-            | Call::Reset
-            | Call::GetFmuState
-            | Call::SetFmuState
-            | Call::FreeFmuState
-            | Call::SerializedFmuStateSize
-            | Call::SerializeFmuState
-            | Call::DeSerializeFmuState => !matches!(s, StartEnd | StepInProgress | Fatal),
-            Call::SetupExperiment | Call::EnterInitializationMode => s == Instantiated,
-            Call::ExitInitializationMode => s == InitializationMode,
-            Call::Terminate => matches!(s, StepComplete | StepFailed),
-            Call::GetReal
-            | Call::GetInteger
-            | Call::GetBoolean
-            | Call::GetString
-            | Call::GetDirectionalDerivative => matches!(
-                s,
-                InitializationMode | StepComplete | StepFailed | StepCanceled | Terminated | Error
-            ),
-            Call::SetReal | Call::SetInteger | Call::SetBoolean | Call::SetString => {
-                matches!(s, Instantiated | InitializationMode | StepComplete)
-            }
-            Call::SetRealInputDerivatives => {
-                matches!(s, Instantiated | InitializationMode | StepComplete)
-            }
-            Call::GetRealOutputDerivatives => {
-                matches!(
-                    s,
-                    StepComplete | StepFailed | StepCanceled | Terminated | Error
-                )
-            }
-            Call::DoStep => s == StepComplete,
-            Call::CancelStep => s == StepInProgress,
-            Call::GetStatus
-            | Call::GetRealStatus
-            | Call::GetIntegerStatus
-            | Call::GetBooleanStatus
-            | Call::GetStringStatus => {
-                matches!(s, StepComplete | StepInProgress | StepFailed | Terminated)
-            }
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn every_call_has_a_distinct_c_name_with_the_fmi2_prefix() {
-        let mut names: Vec<_> = Call::ALL.iter().map(|c| c.name()).collect();
-        assert!(names.iter().all(|n| n.starts_with("fmi2")));
-        names.sort();
-        names.dedup();
-        assert_eq!(names.len(), 34);
-    }
-
-    #[test]
-    fn spot_checks_against_the_standard_table() {
-        assert!(Call::Instantiate.allowed_in(State::StartEnd));
-        assert!(!Call::DoStep.allowed_in(State::Instantiated));
-        assert!(!Call::DoStep.allowed_in(State::InitializationMode));
-        assert!(Call::DoStep.allowed_in(State::StepComplete));
-        assert!(!Call::GetReal.allowed_in(State::Instantiated));
-        assert!(Call::GetReal.allowed_in(State::Error));
-        assert!(!Call::SetReal.allowed_in(State::Terminated));
-        assert!(Call::Reset.allowed_in(State::Error));
-        assert!(!Call::Reset.allowed_in(State::Fatal));
-        assert!(Call::Terminate.allowed_in(State::StepComplete));
-        assert!(!Call::Terminate.allowed_in(State::InitializationMode));
-    }
+    fn name(self) -> &'static str;
+    /// Whether the protocol's table allows this function in state `state`.
+    fn allowed_in(self, state: State) -> bool;
+    /// `status` as the protocol's functions return it: the layer's edge, where the core's [`Status`] becomes
+    /// fmi2Status or fmi3Status.
+    fn code(status: Status) -> Self::Code;
 }

@@ -1,4 +1,5 @@
-//! The variable table the FMI layer works from; build.rs generates one per model description.
+//! The variable table the core works from (build.rs generates one per model description), the checks a
+//! value must pass to be set, and the lookup from value reference to variable.
 
 /// The FMI base type of a variable.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -92,6 +93,88 @@ impl Value {
             Value::Integer(v) => *v != 0,
             Value::Real(v) => *v != 0.0,
             Value::String(s) => !s.is_empty(),
+        }
+    }
+}
+
+/// A value the variable `v` may take: a finite Real or Integer within the XML's min and max.
+pub fn check_value(v: &VarInfo, value: &Value) -> Result<(), String> {
+    if let Value::Real(x) = value
+        && !x.is_finite()
+    {
+        return Err(format!("'{}' = {x} is not a finite number", v.name));
+    }
+    let x = value.as_real();
+    if matches!(value, Value::Real(_) | Value::Integer(_)) {
+        if let Some(lo) = v.min
+            && x < lo
+        {
+            return Err(format!("'{}' = {x} is below its minimum {lo}", v.name));
+        }
+        if let Some(hi) = v.max
+            && x > hi
+        {
+            return Err(format!("'{}' = {x} is above its maximum {hi}", v.name));
+        }
+    }
+    Ok(())
+}
+
+/// Indices of the input variables, in the order of the variable table.
+pub fn input_indices(vars: &[VarInfo]) -> Vec<usize> {
+    vars.iter()
+        .enumerate()
+        .filter(|(_, v)| v.causality == Causality::Input)
+        .map(|(i, _)| i)
+        .collect()
+}
+
+/// Value reference -> variable index for each of the four types: a dense table when the largest value
+/// reference is small (it is: the model descriptions number their variables below 100), so that a lookup is one
+/// load instead of a scan of the variable list; a scan otherwise.
+pub struct VrTable {
+    /// `dense[type][vr]` = index + 1, 0 for none. Empty when the references are too sparse.
+    dense: [Vec<u16>; 4],
+}
+
+impl VrTable {
+    /// Largest value reference put in the dense table.
+    const DENSE_MAX: u32 = 4096;
+
+    fn slot(ty: VarType) -> usize {
+        match ty {
+            VarType::Real => 0,
+            VarType::Integer => 1,
+            VarType::Boolean => 2,
+            VarType::String => 3,
+        }
+    }
+
+    pub fn new(vars: &[VarInfo]) -> Self {
+        let mut dense: [Vec<u16>; 4] = Default::default();
+        let fits =
+            vars.len() < usize::from(u16::MAX) && vars.iter().all(|v| v.vr <= Self::DENSE_MAX);
+        if fits {
+            // The first variable with a given (type, vr) wins, as the scan it replaces.
+            for (i, v) in vars.iter().enumerate().rev() {
+                let t = &mut dense[Self::slot(v.ty)];
+                let at = v.vr as usize;
+                if t.len() <= at {
+                    t.resize(at + 1, 0);
+                }
+                t[at] = (i + 1) as u16;
+            }
+        }
+        Self { dense }
+    }
+
+    pub fn get(&self, vars: &[VarInfo], ty: VarType, vr: u32) -> Option<usize> {
+        if self.dense.iter().all(Vec::is_empty) {
+            return vars.iter().position(|v| v.vr == vr && v.ty == ty);
+        }
+        match self.dense[Self::slot(ty)].get(vr as usize) {
+            Some(&i) if i > 0 => Some(usize::from(i) - 1),
+            _ => None,
         }
     }
 }
