@@ -41,6 +41,9 @@ mod tests {
             assert_eq!((slave.guid(), slave.identifier()), (e.guid, e.identifier));
         }
         let err = fmus.instantiate("{0}", "instantiationToken").err().unwrap();
-        assert!(err.starts_with("instantiationToken {0} matches none"), "{err}");
+        assert!(
+            err.starts_with("instantiationToken {0} matches none"),
+            "{err}"
+        );
     }
 }
