@@ -371,7 +371,7 @@ pub fn generate(module: &str, md: &ModelDescription) -> String {
     )
     .unwrap();
     writeln!(s, "pub mod {module} {{").unwrap();
-    writeln!(s, "    use crate::fmi2::vars::*;").unwrap();
+    writeln!(s, "    use crate::fmi::vars::*;").unwrap();
     writeln!(
         s,
         "    pub const MODEL_IDENTIFIER: &str = {:?};",

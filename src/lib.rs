@@ -4,9 +4,9 @@
 //!   polynomial-border backlash and continuous-time linear block of paper 003.
 //! - [`identify`]: the estimators: MRGIA (paper 000), frequency LS / separable LS (paper 003).
 //! - [`diagnose`]: residual tests that trace a model's error to the effect it lacks.
-//! - [`fmi2`]: one FMI 2.0 co-simulation layer, generic over the model, with the protocol-independent core
-//!   (the `Model` trait, the instance, the registry); [`fmi3`]: the FMI 3.0 co-simulation layer over the same
-//!   core; [`fmus`]: the two adapters, registered in [`FMUS`].
+//! - [`fmi`]: the protocol-independent core of the FMUs (the `Model` trait, the instance, timing, FMU state,
+//!   the C boundary, the registry); [`fmi2`] and [`fmi3`]: the FMI 2.0 and 3.0 co-simulation layers over it;
+//!   [`fmus`]: the two adapters, registered through the core's seam.
 //! - [`api`]: the command line's results as JSON objects, computed from arrays (the program and the Python
 //!   package share it).
 //! - [`io`]: validated CSV reading, atomic writing; [`report`]: PNG plots; [`stats`]: descriptive statistics.
@@ -17,6 +17,7 @@
 pub mod api;
 #[cfg(feature = "cli")]
 pub mod diagnose;
+pub mod fmi;
 pub mod fmi2;
 pub mod fmi3;
 pub mod fmus;
@@ -26,6 +27,3 @@ pub mod plant;
 #[cfg(feature = "cli")]
 pub mod report;
 pub mod stats;
-
-/// The FMUs this library serves, as the protocol layers see them: registered by the adapters in [`fmus`].
-pub use fmus::REGISTRY as FMUS;

@@ -21,13 +21,15 @@
               what each call passes and why is the test itself"
 )]
 
-use backlash::fmi2::instance::{Api, Instance};
-use backlash::fmi2::state::State;
-use backlash::fmi2::vars::{Causality, VarInfo, VarType};
+mod common;
+
+use backlash::fmi::instance::Instance;
+use backlash::fmi::state::{Api, State};
+use backlash::fmi::vars::VarType;
 use backlash::fmi3::exports::*;
 use backlash::fmi3::ffi::*;
 use backlash::fmi3::state::Call;
-use backlash::fmus::{backlash_plant, mrgia_estimator};
+use common::Kind;
 use std::ffi::{CStr, CString, c_char, c_void};
 use std::ptr::{null, null_mut};
 use std::sync::Mutex;
@@ -56,39 +58,6 @@ unsafe extern "C" fn record(
     }
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Kind {
-    Plant,
-    Estimator,
-}
-
-impl Kind {
-    const ALL: [Kind; 2] = [Kind::Plant, Kind::Estimator];
-    fn guid(self) -> &'static str {
-        match self {
-            Kind::Plant => backlash_plant::GUID,
-            Kind::Estimator => mrgia_estimator::GUID,
-        }
-    }
-    fn variables(self) -> &'static [VarInfo] {
-        match self {
-            Kind::Plant => &backlash_plant::VARIABLES,
-            Kind::Estimator => &mrgia_estimator::VARIABLES,
-        }
-    }
-    /// A variable of type `ty` to read, if the FMU has one.
-    fn any(self, ty: VarType) -> Option<u32> {
-        self.variables().iter().find(|v| v.ty == ty).map(|v| v.vr)
-    }
-    fn input(self) -> u32 {
-        self.variables()
-            .iter()
-            .find(|v| v.causality == Causality::Input && v.ty == VarType::Real)
-            .unwrap()
-            .vr
-    }
-}
-
 struct Fmu {
     c: Fmi3Instance,
     sink: Box<Sink>,
@@ -99,7 +68,7 @@ impl Fmu {
     fn new(kind: Kind, name: &str) -> Fmu {
         let sink: Box<Sink> = Box::default();
         let cname = CString::new(name).unwrap();
-        let token = CString::new(kind.guid()).unwrap();
+        let token = kind.guid();
         let c = unsafe {
             fmi3InstantiateCoSimulation(
                 cname.as_ptr(),
@@ -483,7 +452,7 @@ fn every_call_in_every_state_follows_the_table() {
 fn instantiation_refusals_log_their_reason_and_return_null() {
     let sink: Sink = Mutex::default();
     let env = &sink as *const Sink as *mut c_void;
-    let token = CString::new(backlash_plant::GUID).unwrap();
+    let token = Kind::Plant.guid();
     let cases: [(&CStr, *const c_char, u8, &str); 4] = [
         (
             c"p",
@@ -579,7 +548,7 @@ fn fmi2_outputs(
         step_finished: None,
         component_environment: null_mut(),
     };
-    let token = CString::new(kind.guid()).unwrap();
+    let token = kind.guid();
     let mut values = Vec::new();
     unsafe {
         let c = fmi2Instantiate(

@@ -47,61 +47,25 @@
 
 mod common;
 
+use backlash::fmi::fmu_state::SavedState;
+use backlash::fmi::instance::Instance;
+use backlash::fmi::state::State;
+use backlash::fmi::vars::{Causality, VarType};
 use backlash::fmi2::exports::*;
 use backlash::fmi2::ffi::*;
-use backlash::fmi2::instance::{Instance, SavedState};
-use backlash::fmi2::state::{Call, State};
-use backlash::fmi2::vars::{Causality, VarInfo, VarType};
-use backlash::fmus::{backlash_plant, mrgia_estimator};
+use backlash::fmi2::state::Call;
 use rand_chacha::ChaCha8Rng;
 use rand_core::{Rng, SeedableRng};
 use std::collections::VecDeque;
-use std::ffi::{CStr, c_char, c_void};
+use std::ffi::{CStr, c_char};
 use std::ptr::{null, null_mut};
 use std::time::Instant;
 
 // ------------------------------------------------------------------------------------------------ logger
 
-use common::{Entry, Sink, logger};
+use common::{Entry, Kind, Sink, callbacks};
 
 // ------------------------------------------------------------------------------------------------- model
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Kind {
-    Plant,
-    Estimator,
-}
-
-impl Kind {
-    fn idx(self) -> usize {
-        self as usize
-    }
-    fn guid(self) -> &'static CStr {
-        static GUIDS: std::sync::OnceLock<[std::ffi::CString; 2]> = std::sync::OnceLock::new();
-        &GUIDS.get_or_init(|| {
-            [backlash_plant::GUID, mrgia_estimator::GUID]
-                .map(|g| std::ffi::CString::new(g).unwrap())
-        })[self.idx()]
-    }
-    fn variables(self) -> &'static [VarInfo] {
-        match self {
-            Kind::Plant => &backlash_plant::VARIABLES,
-            Kind::Estimator => &mrgia_estimator::VARIABLES,
-        }
-    }
-    fn categories(self) -> &'static [&'static str] {
-        match self {
-            Kind::Plant => backlash_plant::LOG_CATEGORIES,
-            Kind::Estimator => mrgia_estimator::LOG_CATEGORIES,
-        }
-    }
-    fn known(self, ty: VarType, vr: u32) -> bool {
-        self.variables().iter().any(|v| v.vr == vr && v.ty == ty)
-    }
-    fn vr(self, name: &str) -> u32 {
-        self.variables().iter().find(|v| v.name == name).unwrap().vr
-    }
-}
 
 struct Slot {
     c: Fmi2Component,
@@ -382,13 +346,10 @@ impl Fuzzer {
             && !unsafe { CStr::from_ptr(name_ptr) }.is_empty();
         let cb_mode = self.below(20); // 0: NULL callbacks, 1: no logger, else the recorder
         let sink: Box<Sink> = Box::default();
-        let cb = Fmi2CallbackFunctions {
-            logger: if cb_mode == 1 { None } else { logger() },
-            allocate_memory: None,
-            free_memory: None,
-            step_finished: None,
-            component_environment: &*sink as *const Sink as *mut c_void,
-        };
+        let mut cb = callbacks(&sink);
+        if cb_mode == 1 {
+            cb.logger = None;
+        }
         let cbp: *const Fmi2CallbackFunctions = if cb_mode == 0 { null() } else { &cb };
         let c = unsafe {
             fmi2Instantiate(
@@ -1465,13 +1426,7 @@ impl Fuzzer {
         // A fresh instance refuses every state (none is its own), then each instance is freed with the states
         // it still holds.
         let sink: Box<Sink> = Box::default();
-        let cb = Fmi2CallbackFunctions {
-            logger: logger(),
-            allocate_memory: None,
-            free_memory: None,
-            step_finished: None,
-            component_environment: &*sink as *const Sink as *mut c_void,
-        };
+        let cb = callbacks(&sink);
         unsafe {
             let c = fmi2Instantiate(
                 c"sweeper".as_ptr(),
@@ -1621,13 +1576,7 @@ fn random_call_sequences_strict() {
 #[test]
 fn overflowing_plant_is_not_reported_ok() {
     let sink: Box<Sink> = Box::default();
-    let cb = Fmi2CallbackFunctions {
-        logger: logger(),
-        allocate_memory: None,
-        free_memory: None,
-        step_finished: None,
-        component_environment: &*sink as *const Sink as *mut c_void,
-    };
+    let cb = callbacks(&sink);
     let k = Kind::Plant;
     unsafe {
         let c = fmi2Instantiate(
@@ -1685,13 +1634,7 @@ fn overflowing_plant_is_not_reported_ok() {
 
 /// An instance of `kind` in step complete, with a recording logger.
 unsafe fn running(kind: Kind, sink: &Sink) -> Fmi2Component {
-    let cb = Fmi2CallbackFunctions {
-        logger: logger(),
-        allocate_memory: None,
-        free_memory: None,
-        step_finished: None,
-        component_environment: sink as *const Sink as *mut c_void,
-    };
+    let cb = callbacks(sink);
     unsafe {
         let c = fmi2Instantiate(
             c"r".as_ptr(),

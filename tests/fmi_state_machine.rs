@@ -44,54 +44,18 @@
 
 mod common;
 
+use backlash::fmi::instance::Instance;
+use backlash::fmi::state::State;
+use backlash::fmi::vars::{Causality, VarType, Variability};
 use backlash::fmi2::exports::*;
 use backlash::fmi2::ffi::*;
-use backlash::fmi2::instance::Instance;
-use backlash::fmi2::state::{Call, State};
-use backlash::fmi2::vars::{Causality, VarInfo, VarType, Variability};
-use backlash::fmus::{backlash_plant, mrgia_estimator};
-use std::ffi::{CStr, CString, c_char, c_void};
+use backlash::fmi2::state::Call;
+use std::ffi::{CStr, CString, c_char};
 use std::ptr::{null, null_mut};
 
 // ------------------------------------------------------------------------------------------------ harness
 
-use common::{Entry, Sink, logger};
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Kind {
-    Plant,
-    Estimator,
-}
-
-impl Kind {
-    const ALL: [Kind; 2] = [Kind::Plant, Kind::Estimator];
-    fn guid(self) -> &'static str {
-        match self {
-            Kind::Plant => backlash_plant::GUID,
-            Kind::Estimator => mrgia_estimator::GUID,
-        }
-    }
-    fn variables(self) -> &'static [VarInfo] {
-        match self {
-            Kind::Plant => &backlash_plant::VARIABLES,
-            Kind::Estimator => &mrgia_estimator::VARIABLES,
-        }
-    }
-    fn vr(self, name: &str) -> u32 {
-        self.variables()
-            .iter()
-            .find(|v| v.name == name)
-            .unwrap_or_else(|| panic!("{self:?} has no variable {name}"))
-            .vr
-    }
-    fn vrs(self, ty: VarType, causality: Causality) -> Vec<u32> {
-        self.variables()
-            .iter()
-            .filter(|v| v.ty == ty && v.causality == causality)
-            .map(|v| v.vr)
-            .collect()
-    }
-}
+use common::{Entry, Kind, Sink, callbacks};
 
 /// An instance with its own log.
 struct Fmu {
@@ -100,22 +64,12 @@ struct Fmu {
     name: String,
 }
 
-fn callbacks(sink: &Sink) -> Fmi2CallbackFunctions {
-    Fmi2CallbackFunctions {
-        logger: logger(),
-        allocate_memory: None,
-        free_memory: None,
-        step_finished: None,
-        component_environment: sink as *const Sink as *mut c_void,
-    }
-}
-
 impl Fmu {
     fn new(kind: Kind, name: &str) -> Fmu {
         let sink: Box<Sink> = Box::default();
         let cb = callbacks(&sink);
         let cname = CString::new(name).unwrap();
-        let guid = CString::new(kind.guid()).unwrap();
+        let guid = kind.guid();
         // SAFETY: all pointers valid for the call; the callbacks are copied by the instance.
         let c = unsafe {
             fmi2Instantiate(
@@ -983,7 +937,7 @@ fn non_finite_inputs_and_parameters_are_refused_with_a_log_line() {
                         assert_eq!(v0, after);
                     } else {
                         match v.start {
-                            backlash::fmi2::vars::Start::Real(x) => assert_eq!(after, vec![x]),
+                            backlash::fmi::vars::Start::Real(x) => assert_eq!(after, vec![x]),
                             _ => assert!(after[0].is_finite()),
                         }
                     }
@@ -1087,7 +1041,7 @@ fn non_finite_inputs_and_parameters_are_refused_with_a_log_line() {
 fn instantiate_refuses_bad_arguments_with_a_reason() {
     let sink: Box<Sink> = Box::default();
     let cb = callbacks(&sink);
-    let guid = CString::new(backlash_plant::GUID).unwrap();
+    let guid = Kind::Plant.guid();
     let inst = |name: *const c_char,
                 ty: Fmi2Type,
                 guid: *const c_char,

@@ -23,36 +23,21 @@ mod common;
 
 use backlash::fmi2::exports::*;
 use backlash::fmi2::ffi::*;
-use backlash::fmus::{backlash_plant, mrgia_estimator};
 use backlash::plant::{Plant, PlantParams};
-use std::ffi::{CString, c_char, c_void};
+use std::ffi::{CString, c_char};
 use std::ptr::{null, null_mut};
 
-use common::{Sink, logger};
+use common::{Kind, Sink, callbacks};
 
 const OK: u32 = Fmi2Status::Ok as u32;
 const ERROR: u32 = Fmi2Status::Error as u32;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Kind {
-    Plant,
-    Estimator,
-}
-
-fn vr(kind: Kind, name: &str) -> u32 {
-    let vars: &[backlash::fmi2::vars::VarInfo] = match kind {
-        Kind::Plant => &backlash_plant::VARIABLES,
-        Kind::Estimator => &mrgia_estimator::VARIABLES,
-    };
-    vars.iter().find(|v| v.name == name).unwrap().vr
-}
-
 fn outputs(kind: Kind) -> Vec<u32> {
     match kind {
-        Kind::Plant => ["y", "w", "x"].iter().map(|n| vr(kind, n)).collect(),
+        Kind::Plant => ["y", "w", "x"].iter().map(|n| kind.vr(n)).collect(),
         Kind::Estimator => ["a1", "a2", "b0", "m2", "c1", "c2", "y_hat", "e"]
             .iter()
-            .map(|n| vr(kind, n))
+            .map(|n| kind.vr(n))
             .collect(),
     }
 }
@@ -66,18 +51,8 @@ unsafe impl Send for Fmu {}
 
 impl Fmu {
     fn new(kind: Kind, name: &str, sink: &Sink) -> Fmu {
-        let cb = Fmi2CallbackFunctions {
-            logger: logger(),
-            allocate_memory: None,
-            free_memory: None,
-            step_finished: None,
-            component_environment: sink as *const Sink as *mut c_void,
-        };
-        let guid = match kind {
-            Kind::Plant => backlash_plant::GUID,
-            Kind::Estimator => mrgia_estimator::GUID,
-        };
-        let guid = CString::new(guid).unwrap();
+        let cb = callbacks(sink);
+        let guid = kind.guid();
         let name = CString::new(name).unwrap();
         let c = unsafe {
             fmi2Instantiate(
@@ -135,16 +110,16 @@ fn jobs(steps: usize) -> Vec<Job> {
             kind: Kind::Plant,
             name: format!("plant{j}"),
             reals: vec![
-                (vr(Kind::Plant, "noise_std"), params.noise_std),
-                (vr(Kind::Plant, "c1"), 0.5 + 0.1 * j as f64),
+                (Kind::Plant.vr("noise_std"), params.noise_std),
+                (Kind::Plant.vr("c1"), 0.5 + 0.1 * j as f64),
             ],
-            ints: vec![(vr(Kind::Plant, "noise_seed"), 7 + j as i32)],
+            ints: vec![(Kind::Plant.vr("noise_seed"), 7 + j as i32)],
             inputs: u.iter().map(|&u| (u, 0.0)).collect(),
         });
         out.push(Job {
             kind: Kind::Estimator,
             name: format!("estimator{j}"),
-            reals: vec![(vr(Kind::Estimator, "rho_min"), 0.001 * j as f64)],
+            reals: vec![(Kind::Estimator.vr("rho_min"), 0.001 * j as f64)],
             ints: vec![],
             inputs: u.iter().copied().zip(y).collect(),
         });
@@ -178,11 +153,11 @@ fn step(job: &Job, f: &Fmu, k: usize, out: &mut Vec<u64>) {
     unsafe {
         match job.kind {
             Kind::Plant => {
-                let v = vr(job.kind, "u");
+                let v = job.kind.vr("u");
                 ok(fmi2SetReal(f.c, &v, 1, &u), "set u");
             }
             Kind::Estimator => {
-                let v = [vr(job.kind, "u"), vr(job.kind, "y")];
+                let v = [job.kind.vr("u"), job.kind.vr("y")];
                 ok(fmi2SetReal(f.c, v.as_ptr(), 2, [u, y].as_ptr()), "set u, y");
             }
         }
@@ -335,14 +310,8 @@ fn leak_cycles() {
         for job in &jobs {
             unsafe {
                 // A refused instantiation (wrong type) and a NULL-callback one.
-                let cb = Fmi2CallbackFunctions {
-                    logger: logger(),
-                    allocate_memory: None,
-                    free_memory: None,
-                    step_finished: None,
-                    component_environment: &sink as *const Sink as *mut c_void,
-                };
-                let guid = CString::new(backlash_plant::GUID).unwrap();
+                let cb = callbacks(&sink);
+                let guid = Kind::Plant.guid();
                 assert!(
                     fmi2Instantiate(
                         c"x".as_ptr(),

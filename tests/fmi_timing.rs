@@ -21,31 +21,13 @@ mod common;
 
 use backlash::fmi2::exports::*;
 use backlash::fmi2::ffi::*;
-use backlash::fmus::{backlash_plant, mrgia_estimator};
-use common::{Sink, logger};
-use std::ffi::{CString, c_void};
+use common::{Kind, Sink, callbacks};
+use std::ffi::CString;
 use std::ptr::null_mut;
 
 const OK: u32 = Fmi2Status::Ok as u32;
 const DISCARD: u32 = Fmi2Status::Discard as u32;
 const ERROR: u32 = Fmi2Status::Error as u32;
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Kind {
-    Plant,
-    Estimator,
-}
-
-fn vr(kind: Kind, name: &str) -> u32 {
-    let vars: &[backlash::fmi2::vars::VarInfo] = match kind {
-        Kind::Plant => &backlash_plant::VARIABLES,
-        Kind::Estimator => &mrgia_estimator::VARIABLES,
-    };
-    vars.iter()
-        .find(|v| v.name == name)
-        .unwrap_or_else(|| panic!("{kind:?} has no variable {name}"))
-        .vr
-}
 
 /// An initialised instance (Ts as given, start time 0) with a recording logger.
 struct Fmu {
@@ -61,18 +43,8 @@ impl Fmu {
 
     fn with_stop(kind: Kind, name: &str, ts: f64, stop: Option<f64>) -> Fmu {
         let sink: Box<Sink> = Box::default();
-        let cb = Fmi2CallbackFunctions {
-            logger: logger(),
-            allocate_memory: None,
-            free_memory: None,
-            step_finished: None,
-            component_environment: &*sink as *const Sink as *mut c_void,
-        };
-        let guid = match kind {
-            Kind::Plant => backlash_plant::GUID,
-            Kind::Estimator => mrgia_estimator::GUID,
-        };
-        let (name, guid) = (CString::new(name).unwrap(), CString::new(guid).unwrap());
+        let cb = callbacks(&sink);
+        let (name, guid) = (CString::new(name).unwrap(), kind.guid());
         // SAFETY: valid strings and callbacks for the call; the instance copies the callbacks.
         let c = unsafe {
             fmi2Instantiate(
@@ -101,13 +73,13 @@ impl Fmu {
     }
 
     fn set(&self, names: &[&str], values: &[f64]) {
-        let vrs: Vec<u32> = names.iter().map(|n| vr(self.kind, n)).collect();
+        let vrs: Vec<u32> = names.iter().map(|n| self.kind.vr(n)).collect();
         let s = unsafe { fmi2SetReal(self.c, vrs.as_ptr(), vrs.len(), values.as_ptr()) };
         assert_eq!(s, OK, "set {names:?}");
     }
 
     fn get(&self, names: &[&str]) -> Vec<f64> {
-        let vrs: Vec<u32> = names.iter().map(|n| vr(self.kind, n)).collect();
+        let vrs: Vec<u32> = names.iter().map(|n| self.kind.vr(n)).collect();
         let mut out = vec![f64::NAN; vrs.len()];
         let s = unsafe { fmi2GetReal(self.c, vrs.as_ptr(), vrs.len(), out.as_mut_ptr()) };
         assert_eq!(s, OK, "get {names:?}");

@@ -8,7 +8,7 @@
 //! `fmi2DoStep`; estimator `fmi2GetReal(a1, a2, b0, m2, c1, c2, y_hat, e)` and `fmi2GetBoolean(updating)`.
 //!
 //! Found with it: the FMI layer allocated twice per get/set call (the index and value vectors), 11 times per
-//! pair step; it now works on stack arrays (src/fmi2/instance.rs, `STACK_VRS`, `get_with`, `set_with`).
+//! pair step; it now works on stack arrays (src/fmi/instance.rs, `STACK_VRS`, `get_with`, `set_with`).
 //!
 //! Run length: `FMU_MEMORY_STEPS`, default 10 million in release builds (the pair costs a few hundred ns per
 //! step, so about 2-4 s; `cargo test --release` is how CI runs the suite) and 1 million in debug builds
@@ -105,7 +105,7 @@ fn steps() -> u64 {
 
 const OK: u32 = Fmi2Status::Ok as u32;
 
-fn vr(vars: &[backlash::fmi2::vars::VarInfo], name: &str) -> u32 {
+fn vr(vars: &[backlash::fmi::vars::VarInfo], name: &str) -> u32 {
     vars.iter()
         .find(|v| v.name == name)
         .unwrap_or_else(|| panic!("no variable {name}"))

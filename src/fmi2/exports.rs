@@ -7,8 +7,9 @@
 //! Safety, for every export: the importer keeps the standard's promises (a component is NULL or a live
 //! instance called by one thread at a time; arrays hold the elements their counts say; strings are
 //! NUL-terminated). Within those, every argument is checked, and each pointer is read or written in one
-//! small helper of [`super::boundary`] (`instance`, `slice`, `slice_mut`, `c_str`, `write_out`,
-//! `read_state_slot`), which the FMI 3.0 layer shares.
+//! small helper of the core's [`boundary`](crate::fmi::boundary) (`instance`, `slice`, `slice_mut`, `c_str`,
+//! `read_in`, `write_out`, `read_state_slot`), which the FMI 3.0 layer shares. The one unsafe call of this
+//! layer's own is that of the importer's logger ([`emit_raw`]).
 #![allow(
     non_snake_case,
     reason = "the exported functions carry the names the FMI standard gives them"
@@ -18,17 +19,52 @@
     reason = "the exports share one safety contract, stated in the module documentation"
 )]
 
-use super::boundary::{
-    c_str, deserialize, do_step, free_fmu_state, free_instance, get_fmu_state, get_values,
-    instance, serialize, serialized_size, set_debug_logging, set_fmu_state, set_values, slice,
-    slice_mut, with_instance, write_out,
-};
 use super::ffi::*;
-use super::instance::{Instance, emit_raw};
 use super::state::Call;
-use super::vars::{Value, VarType};
+use crate::fmi::boundary::{
+    c_str, deserialize, do_step, free_fmu_state, free_instance, get_fmu_state, get_values,
+    instance, new_instance, read_in, serialize, serialized_size, set_debug_logging, set_fmu_state,
+    set_values, slice, slice_mut, with_instance, write_out,
+};
+use crate::fmi::instance::Instance;
+use crate::fmi::log::{Logger, cstring};
+use crate::fmi::status::Status;
+use crate::fmi::vars::{Value, VarType};
 use std::ffi::{CStr, c_char};
 use std::panic::catch_unwind;
+
+/// Log through the importer's logger, if it gave one. The text is the format itself, with every '%' doubled
+/// and no further argument: printf-style loggers (FMPy's, the FMI Library's) print it unchanged, and loggers
+/// that do not format show it as it is, apart from the doubled '%' (the standard's logger is a printf format).
+pub fn emit_raw(
+    callbacks: &Fmi2CallbackFunctions,
+    instance: &CStr,
+    status: Status,
+    category: &str,
+    text: &str,
+) {
+    if let Some(logger) = callbacks.logger {
+        let category = cstring(category);
+        let format = cstring(&text.replace('%', "%%"));
+        // SAFETY: the logger is the importer's C function; all strings are NUL-terminated and outlive the
+        // call; the format has no conversion (every '%' is doubled), so no variadic argument is read.
+        unsafe {
+            logger(
+                callbacks.component_environment,
+                instance.as_ptr(),
+                Fmi2Status::from(status) as Fmi2StatusC,
+                category.as_ptr(),
+                format.as_ptr(),
+            );
+        }
+    }
+}
+
+impl Logger for Fmi2CallbackFunctions {
+    fn log(&self, instance: &CStr, status: Status, category: &str, text: &str) {
+        emit_raw(self, instance, status, category, text);
+    }
+}
 
 #[unsafe(no_mangle)]
 pub extern "C" fn fmi2GetTypesPlatform() -> *const c_char {
@@ -51,25 +87,17 @@ pub unsafe extern "C" fn fmi2Instantiate(
     logging_on: Fmi2Boolean,
 ) -> Fmi2Component {
     let result = catch_unwind(|| {
-        let callbacks = if functions.is_null() {
-            None
-        } else {
-            // SAFETY: not NULL, and the importer passes the address of its callback struct.
-            Some(unsafe { *functions })
-        };
-        let name = if instance_name.is_null() {
-            None
-        } else {
-            // SAFETY: not NULL, and the importer passes NUL-terminated strings.
-            unsafe { CStr::from_ptr(instance_name) }.to_str().ok()
-        };
+        // SAFETY: the importer passes NULL or the address of its callback struct.
+        let callbacks = unsafe { read_in(functions) };
+        // SAFETY: the importer passes NULL or a NUL-terminated string.
+        let name = unsafe { c_str(instance_name, "instanceName") }.ok();
         let refuse = |reason: &str| {
             if let Some(cb) = &callbacks {
                 let n = std::ffi::CString::new(name.unwrap_or("?")).unwrap_or_default();
                 emit_raw(
                     cb,
                     &n,
-                    Fmi2Status::Error,
+                    Status::Error,
                     "logStatusError",
                     &format!("fmi2Instantiate: {reason}"),
                 );
@@ -95,20 +123,14 @@ pub unsafe extern "C" fn fmi2Instantiate(
             Ok(g) => g,
             Err(e) => return refuse(&e),
         };
-        let slave = match crate::FMUS.instantiate(guid, "fmuGUID") {
-            Ok(s) => s,
-            Err(e) => return refuse(&e),
-        };
-        let inst = Box::new(Instance::new(
+        let made = new_instance(
+            Call::Instantiate,
             name,
+            ("fmuGUID", guid),
             callbacks,
             logging_on != FMI2_FALSE,
-            slave,
-        ));
-        inst.log_call(Call::Instantiate, || {
-            format!("instanceName={name}, fmuGUID={guid}")
-        });
-        Box::into_raw(inst) as Fmi2Component
+        );
+        made.unwrap_or_else(|e| refuse(&e))
     });
     result.unwrap_or(std::ptr::null_mut())
 }
@@ -160,7 +182,7 @@ pub unsafe extern "C" fn fmi2SetupExperiment(
             stop_time_defined != FMI2_FALSE,
             stop_time,
         )?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -171,7 +193,7 @@ pub unsafe extern "C" fn fmi2EnterInitializationMode(c: Fmi2Component) -> Fmi2St
     with_instance(inst, Call::EnterInitializationMode, |inst| {
         inst.log_call(Call::EnterInitializationMode, String::new);
         inst.enter_initialization()?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -182,7 +204,7 @@ pub unsafe extern "C" fn fmi2ExitInitializationMode(c: Fmi2Component) -> Fmi2Sta
     with_instance(inst, Call::ExitInitializationMode, |inst| {
         inst.log_call(Call::ExitInitializationMode, String::new);
         inst.exit_initialization()?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -193,7 +215,7 @@ pub unsafe extern "C" fn fmi2Terminate(c: Fmi2Component) -> Fmi2StatusC {
     with_instance(inst, Call::Terminate, |inst| {
         inst.log_call(Call::Terminate, String::new);
         inst.terminate()?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -204,7 +226,7 @@ pub unsafe extern "C" fn fmi2Reset(c: Fmi2Component) -> Fmi2StatusC {
     with_instance(inst, Call::Reset, |inst| {
         inst.log_call(Call::Reset, String::new);
         inst.reset()?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -295,7 +317,7 @@ pub unsafe extern "C" fn fmi2GetString(
         for (o, s) in out.iter_mut().zip(kept) {
             *o = s.as_ptr();
         }
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -522,19 +544,19 @@ pub unsafe extern "C" fn fmi2CancelStep(c: Fmi2Component) -> Fmi2StatusC {
     // Steps are synchronous, so no step is ever in progress: the state machine refuses this call.
     // SAFETY: `c` is NULL or a live instance, as the standard requires of the importer.
     let inst = unsafe { instance(c) };
-    with_instance(inst, Call::CancelStep, |_| Ok(Fmi2Status::Ok))
+    with_instance(inst, Call::CancelStep, |_| Ok(Status::Ok))
 }
 
 /// A status kind this slave cannot report: fmi2Discard, as the standard prescribes, with a warning.
-fn unavailable(inst: &Instance, call: &str, kind: Fmi2StatusKind) -> Fmi2Status {
+fn unavailable(inst: &Instance, call: &str, kind: Fmi2StatusKind) -> Status {
     if inst.log.warnings {
         inst.emit(
-            Fmi2Status::Discard,
+            Status::Discard,
             "logStatusWarning",
             &format!("{call}: status kind {kind} is not available (steps are synchronous)"),
         );
     }
-    Fmi2Status::Discard
+    Status::Discard
 }
 
 #[unsafe(no_mangle)]
@@ -553,7 +575,7 @@ pub unsafe extern "C" fn fmi2GetStatus(
             // Steps complete before fmi2DoStep returns; there is no asynchronous status to report.
             // SAFETY: `value` is the address of the importer's variable (the standard).
             unsafe { write_out(value, Fmi2Status::Ok as Fmi2StatusC, "value") }?;
-            Ok(Fmi2Status::Ok)
+            Ok(Status::Ok)
         } else {
             Ok(unavailable(inst, "fmi2GetStatus", s))
         }
@@ -575,7 +597,7 @@ pub unsafe extern "C" fn fmi2GetRealStatus(
         if s == FMI2_LAST_SUCCESSFUL_TIME {
             // SAFETY: `value` is the address of the importer's variable (the standard).
             unsafe { write_out(value, inst.time(), "value") }?;
-            Ok(Fmi2Status::Ok)
+            Ok(Status::Ok)
         } else {
             Ok(unavailable(inst, "fmi2GetRealStatus", s))
         }
@@ -611,7 +633,7 @@ pub unsafe extern "C" fn fmi2GetBooleanStatus(
             // The slave never asks to end the simulation.
             // SAFETY: `value` is the address of the importer's variable (the standard).
             unsafe { write_out(value, FMI2_FALSE, "value") }?;
-            Ok(Fmi2Status::Ok)
+            Ok(Status::Ok)
         } else {
             Ok(unavailable(inst, "fmi2GetBooleanStatus", s))
         }

@@ -1,6 +1,7 @@
 //! The C types of the FMI 2.0 standard headers (fmi2TypesPlatform.h, fmi2FunctionTypes.h), written out here
 //! so that the FMU binary needs neither the headers nor bindgen.
 
+use crate::fmi::status::Status;
 use std::ffi::{c_char, c_int, c_uint, c_void};
 
 pub type Fmi2Component = *mut c_void;
@@ -38,6 +39,19 @@ impl Fmi2Status {
             Fmi2Status::Error => "fmi2Error",
             Fmi2Status::Fatal => "fmi2Fatal",
             Fmi2Status::Pending => "fmi2Pending",
+        }
+    }
+}
+
+impl From<Status> for Fmi2Status {
+    /// The core's status as FMI 2.0 says it (fmi2Pending is never the answer: steps are synchronous).
+    fn from(status: Status) -> Self {
+        match status {
+            Status::Ok => Fmi2Status::Ok,
+            Status::Warning => Fmi2Status::Warning,
+            Status::Discard => Fmi2Status::Discard,
+            Status::Error => Fmi2Status::Error,
+            Status::Fatal => Fmi2Status::Fatal,
         }
     }
 }

@@ -3,55 +3,12 @@
 //! The table is that of the standard (FMI 2.0.x, section 4.2.4, "state machine of calling sequence from
 //! master to slave"), written as a match so that a missing case is a compile error. `StepInProgress` and
 //! `StepCanceled` exist in the standard for asynchronous steps; this implementation steps synchronously, so
-//! an instance is never observed in them, but the table keeps them for completeness.
+//! an instance is never observed in them, but the table keeps them for completeness. The states themselves
+//! are the core's ([`State`]).
 
-use super::instance::Api;
-
-/// The states of a co-simulation slave.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum State {
-    /// Before fmi2Instantiate and after fmi2FreeInstance (there is no instance then; used by the table).
-    StartEnd,
-    Instantiated,
-    InitializationMode,
-    StepComplete,
-    StepInProgress,
-    StepFailed,
-    StepCanceled,
-    Terminated,
-    Error,
-    Fatal,
-}
-
-impl State {
-    pub const ALL: [State; 10] = [
-        State::StartEnd,
-        State::Instantiated,
-        State::InitializationMode,
-        State::StepComplete,
-        State::StepInProgress,
-        State::StepFailed,
-        State::StepCanceled,
-        State::Terminated,
-        State::Error,
-        State::Fatal,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            State::StartEnd => "start/end",
-            State::Instantiated => "instantiated",
-            State::InitializationMode => "initialization mode",
-            State::StepComplete => "step complete",
-            State::StepInProgress => "step in progress",
-            State::StepFailed => "step failed",
-            State::StepCanceled => "step canceled",
-            State::Terminated => "terminated",
-            State::Error => "error",
-            State::Fatal => "fatal",
-        }
-    }
-}
+use super::ffi::{Fmi2Status, Fmi2StatusC};
+use crate::fmi::state::{Api, State};
+use crate::fmi::status::Status;
 
 /// Every function of the FMI 2.0 co-simulation API.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -142,6 +99,12 @@ impl Call {
 }
 
 impl Api for Call {
+    type Code = Fmi2StatusC;
+
+    fn code(status: Status) -> Fmi2StatusC {
+        Fmi2Status::from(status) as Fmi2StatusC
+    }
+
     fn name(self) -> &'static str {
         match self {
             Call::GetTypesPlatform => "fmi2GetTypesPlatform",
@@ -257,5 +220,17 @@ mod tests {
         assert!(!Call::Reset.allowed_in(State::Fatal));
         assert!(Call::Terminate.allowed_in(State::StepComplete));
         assert!(!Call::Terminate.allowed_in(State::InitializationMode));
+    }
+
+    #[test]
+    fn the_core_statuses_are_coded_as_fmi2_statuses() {
+        let all = [
+            Status::Ok,
+            Status::Warning,
+            Status::Discard,
+            Status::Error,
+            Status::Fatal,
+        ];
+        assert_eq!(all.map(Call::code), [0, 1, 2, 3, 4]);
     }
 }

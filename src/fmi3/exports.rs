@@ -11,7 +11,9 @@
 //! Safety, for every export: the importer keeps the standard's promises (an instance is NULL or a live
 //! instance called by one thread at a time; arrays hold the elements their counts say; strings are
 //! NUL-terminated; output arguments point to writable variables). Within those, every argument is checked,
-//! and each pointer is read or written in one small helper of `crate::fmi2::boundary`.
+//! and each pointer is read or written in one small helper of the core's
+//! [`boundary`](crate::fmi::boundary). The one unsafe call of this layer's own is that of the importer's
+//! logger (`Fmi3Logger`).
 #![allow(
     non_snake_case,
     reason = "the exported functions carry the names the FMI standard gives them"
@@ -24,14 +26,14 @@
 use super::TIME_VR;
 use super::ffi::*;
 use super::state::Call;
-use crate::fmi2::boundary::{
+use crate::fmi::boundary::{
     c_str, check_counts, deserialize, do_step, free_fmu_state, free_instance, get_fmu_state,
-    get_values, instance, serialize, serialized_size, set_debug_logging, set_fmu_state, set_values,
-    slice, slice_mut, with_instance, write_out,
+    get_values, instance, new_instance, serialize, serialized_size, set_debug_logging,
+    set_fmu_state, set_values, slice, slice_mut, with_instance, write_out,
 };
-use crate::fmi2::ffi::Fmi2Status;
-use crate::fmi2::instance::{Instance, Logger, cstring};
-use crate::fmi2::vars::{Value, VarType};
+use crate::fmi::log::{Logger, cstring};
+use crate::fmi::status::Status;
+use crate::fmi::vars::{Value, VarType};
 use std::ffi::{CStr, c_char};
 use std::panic::catch_unwind;
 
@@ -43,7 +45,7 @@ struct Fmi3Logger {
 }
 
 impl Logger for Fmi3Logger {
-    fn log(&self, _instance: &CStr, status: Fmi2Status, category: &str, text: &str) {
+    fn log(&self, _instance: &CStr, status: Status, category: &str, text: &str) {
         if let Some(callback) = self.callback {
             let (category, message) = (cstring(category), cstring(text));
             // SAFETY: the importer's C function with its own environment; both strings are NUL-terminated
@@ -51,7 +53,7 @@ impl Logger for Fmi3Logger {
             unsafe {
                 callback(
                     self.environment,
-                    status as Fmi3StatusC,
+                    Fmi3Status::from(status) as Fmi3StatusC,
                     category.as_ptr(),
                     message.as_ptr(),
                 )
@@ -88,7 +90,7 @@ pub unsafe extern "C" fn fmi3SetDebugLogging(
 fn refuse(logger: Fmi3Logger, call: Call, reason: &str) -> Fmi3Instance {
     logger.log(
         c"",
-        Fmi2Status::Error,
+        Status::Error,
         "logStatusError",
         &format!("{}: {reason}", call.name()),
     );
@@ -138,15 +140,14 @@ pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
             Ok(t) => t,
             Err(e) => return refuse(logger, call, &e),
         };
-        let slave = match crate::FMUS.instantiate(token, "instantiationToken") {
-            Ok(s) => s,
-            Err(e) => return refuse(logger, call, &e),
-        };
-        let inst = Box::new(Instance::new(name, logger, logging_on != FMI3_FALSE, slave));
-        inst.log_call(call, || {
-            format!("instanceName={name}, instantiationToken={token}")
-        });
-        Box::into_raw(inst).cast()
+        let made = new_instance(
+            call,
+            name,
+            ("instantiationToken", token),
+            logger,
+            logging_on != FMI3_FALSE,
+        );
+        made.unwrap_or_else(|e| refuse(logger, call, &e))
     });
     result.unwrap_or(std::ptr::null_mut())
 }
@@ -237,7 +238,7 @@ pub unsafe extern "C" fn fmi3EnterInitializationMode(
         // The independent variable reads the start time during initialization.
         inst.layer.time = start_time;
         inst.enter_initialization()?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -249,7 +250,7 @@ pub unsafe extern "C" fn fmi3ExitInitializationMode(c: Fmi3Instance) -> Fmi3Stat
         inst.log_call(Call::ExitInitializationMode, String::new);
         // Without event mode the instance goes straight to step mode.
         inst.exit_initialization()?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -260,7 +261,7 @@ pub unsafe extern "C" fn fmi3Terminate(c: Fmi3Instance) -> Fmi3StatusC {
     with_instance(inst, Call::Terminate, |inst| {
         inst.log_call(Call::Terminate, String::new);
         inst.terminate()?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -271,7 +272,7 @@ pub unsafe extern "C" fn fmi3Reset(c: Fmi3Instance) -> Fmi3StatusC {
     with_instance(inst, Call::Reset, |inst| {
         inst.log_call(Call::Reset, String::new);
         inst.reset()?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -304,7 +305,7 @@ pub unsafe extern "C" fn fmi3GetFloat64(
             // No allocation: the values go straight to the caller's array.
             inst.get_with(VarType::Real, vrs, |k, v| out[k] = v.as_real())?;
         }
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -433,7 +434,7 @@ unsafe fn absent_type(c: Fmi3Instance, call: Call, type_name: &str, n: usize) ->
     let inst = unsafe { instance(c) };
     with_instance(inst, call, |_| {
         if n == 0 {
-            Ok(Fmi2Status::Ok)
+            Ok(Status::Ok)
         } else {
             Err(format!(
                 "this FMU has no {type_name} variable: its variables are Float64, Int32 and Boolean scalars"

@@ -1,6 +1,7 @@
 //! The C types of the FMI 3.0 standard headers (fmi3PlatformTypes.h, fmi3FunctionTypes.h) that the exports
 //! use, written out here so that the FMU binary needs neither the headers nor bindgen.
 
+use crate::fmi::status::Status;
 use std::ffi::{c_char, c_uint, c_void};
 
 pub type Fmi3Instance = *mut c_void;
@@ -17,8 +18,31 @@ pub type Fmi3Boolean = u8;
 pub const FMI3_TRUE: Fmi3Boolean = 1;
 pub const FMI3_FALSE: Fmi3Boolean = 0;
 
-/// fmi3Status (a C enum, `unsigned int` on the supported platforms, like fmi2Status; the values agree from
-/// fmi3OK = 0 to fmi3Fatal = 4).
+/// fmi3Status.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Fmi3Status {
+    Ok = 0,
+    Warning = 1,
+    Discard = 2,
+    Error = 3,
+    Fatal = 4,
+}
+
+impl From<Status> for Fmi3Status {
+    /// The core's status as FMI 3.0 says it.
+    fn from(status: Status) -> Self {
+        match status {
+            Status::Ok => Fmi3Status::Ok,
+            Status::Warning => Fmi3Status::Warning,
+            Status::Discard => Fmi3Status::Discard,
+            Status::Error => Fmi3Status::Error,
+            Status::Fatal => Fmi3Status::Fatal,
+        }
+    }
+}
+
+/// fmi3Status as it crosses the boundary: a C enum, `unsigned int` on the supported platforms.
 pub type Fmi3StatusC = c_uint;
 /// fmi3DependencyKind and fmi3IntervalQualifier (C enums).
 pub type Fmi3EnumC = c_uint;

@@ -1,10 +1,9 @@
-//! One FMI 3.0 co-simulation layer for any model, beside the FMI 2.0 one and over the same core.
+//! The FMI 3.0 co-simulation layer over the core (`crate::fmi`), beside the FMI 2.0 one.
 //!
-//! The protocol-independent core lives in `crate::fmi2` (it came first): the [`Model`](crate::fmi2::Model)
-//! trait, the [`Instance`](crate::fmi2::instance::Instance) with its sampled-data timing, argument checks,
-//! FMU state and logging, the C-boundary helpers of [`boundary`](crate::fmi2::boundary) and the model
-//! registry `crate::FMUS`. What is FMI 3.0 here: the 75 exported functions (all of fmi3Functions.h) ([`exports`]), their C types
-//! ([`ffi`]) and the calling-sequence table ([`state`]).
+//! What is FMI 3.0 here and nothing else: the 75 exported functions (all of fmi3Functions.h) ([`exports`]),
+//! their C types and status ([`ffi`]) and the calling-sequence table ([`state`]). Argument checks, timing,
+//! FMU state and logging are the core's; `fmi3InstantiateCoSimulation` picks the model whose instantiation
+//! token the importer passes among those the binary registered, without naming any.
 //!
 //! FMI 3.0 specifics: every variable is a scalar (Float64, Int32, Boolean; `nValues` must equal
 //! `nValueReferences`); no event mode, clocks, configuration mode or intermediate update (`eventModeUsed`

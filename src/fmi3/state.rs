@@ -2,7 +2,7 @@
 //!
 //! The table follows the standard (FMI 3.0, section 4.2 "state machine for co-simulation", and 2.3 for the
 //! common functions), for an FMU without event mode (hasEventMode="false"), configuration mode, clocks or
-//! intermediate update: the states are those of the shared [`State`] enum, read as FMI 3.0's
+//! intermediate update: the states are those of the core's [`State`] enum, read as FMI 3.0's
 //! `Instantiated`, `Initialization Mode`, `Step Mode` (= [`State::StepComplete`]), `Terminated`, and the
 //! error states. A step cut short with fmi3Discard leaves the instance in [`State::StepFailed`], as in the
 //! FMI 2.0 layer: the master reads `lastSuccessfulTime`, then terminates or restores an FMU state.
@@ -11,8 +11,9 @@
 //! dependencies, model exchange and scheduled execution) are allowed wherever an instance exists, so that the answer is their own "not provided"
 //! error rather than a state error; written as a match, a missing case is a compile error.
 
-use crate::fmi2::instance::Api;
-use crate::fmi2::state::State;
+use super::ffi::{Fmi3Status, Fmi3StatusC};
+use crate::fmi::state::{Api, State};
+use crate::fmi::status::Status;
 
 macro_rules! calls {
     ($($variant:ident => $name:literal,)*) => {
@@ -116,6 +117,12 @@ calls! {
 }
 
 impl Api for Call {
+    type Code = Fmi3StatusC;
+
+    fn code(status: Status) -> Fmi3StatusC {
+        Fmi3Status::from(status) as Fmi3StatusC
+    }
+
     fn name(self) -> &'static str {
         Call::name(self)
     }
@@ -230,5 +237,17 @@ mod tests {
         assert!(Call::Reset.allowed_in(State::Error));
         assert!(!Call::Reset.allowed_in(State::Fatal));
         assert!(!Call::Terminate.allowed_in(State::InitializationMode));
+    }
+
+    #[test]
+    fn the_core_statuses_are_coded_as_fmi3_statuses() {
+        let all = [
+            Status::Ok,
+            Status::Warning,
+            Status::Discard,
+            Status::Error,
+            Status::Fatal,
+        ];
+        assert_eq!(all.map(Call::code), [0, 1, 2, 3, 4]);
     }
 }

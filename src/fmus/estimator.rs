@@ -10,8 +10,8 @@
 //! na/nb).
 
 use super::mrgia_estimator::{self as md, Var};
-use crate::fmi2::Model;
-use crate::fmi2::vars::{Value, VarInfo};
+use crate::fmi::Model;
+use crate::fmi::vars::{Value, VarInfo};
 use crate::identify::mrgia::{MrgiaConfig, StepResult};
 use crate::identify::oe::online::OnlineEstimator as Running;
 use serde::{Deserialize, Serialize};

@@ -1,8 +1,8 @@
 //! BacklashPlant.fmu: the plant of `crate::plant` behind the FMI layer.
 
 use super::backlash_plant::{self as md, Var};
-use crate::fmi2::Model;
-use crate::fmi2::vars::{Value, VarInfo};
+use crate::fmi::Model;
+use crate::fmi::vars::{Value, VarInfo};
 use crate::plant::effects::{
     ColouredNoise, CurvedBorders, DeadZone, DirectionDependent, Effects, Friction, FrictionForm,
     GapDrift, Periodic, Quantization, Saturation,

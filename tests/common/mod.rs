@@ -1,4 +1,5 @@
-//! What the in-process FMI tests share: a logger that records what the layer logs.
+//! What the in-process FMI tests share: which FMU a test drives ([`Kind`]), and a logger that records what
+//! the FMI 2.0 layer logs.
 //!
 //! The FMI logger is variadic C, and Rust cannot define variadic functions on stable. The layer calls it with
 //! the message as the format, every '%' doubled, and no variadic argument; on x86_64 SysV (the platform the
@@ -8,8 +9,12 @@
 //! format holds a conversion, which would read an argument that is not there.
 #![allow(dead_code, reason = "each test crate uses only some of these helpers")]
 
+mod kind;
+
+pub use kind::Kind;
+
 use backlash::fmi2::ffi::*;
-use std::ffi::{CStr, c_char};
+use std::ffi::{CStr, c_char, c_void};
 use std::sync::Mutex;
 
 #[derive(Debug, Clone, PartialEq)]
@@ -90,4 +95,15 @@ pub fn logger() -> Fmi2CallbackLogger {
         >(record)
     };
     Some(variadic)
+}
+
+/// Callbacks whose logger records into `sink` (which must outlive the instance).
+pub fn callbacks(sink: &Sink) -> Fmi2CallbackFunctions {
+    Fmi2CallbackFunctions {
+        logger: logger(),
+        allocate_memory: None,
+        free_memory: None,
+        step_finished: None,
+        component_environment: sink as *const Sink as *mut c_void,
+    }
 }

@@ -3,7 +3,6 @@
 
 use super::rls::{MAX_N, Rls};
 use super::*;
-use crate::identify::oe::online::OnlineEstimator;
 use crate::plant::{Arx, ArxParams, BacklashParams, Mode, Plant, PlantParams};
 use nalgebra::{DMatrix, SMatrix, SVector};
 use proptest::prelude::*;
@@ -705,18 +704,18 @@ pub(crate) fn wear_data(
 /// Samples after `k_switch` from which both gap estimates stay within `tol` (relative) of `c1`, `c2` up to
 /// the end of the record (None: not settled by then).
 fn settle_time(cfg: MrgiaConfig, u: &[f64], y: &[f64], k_switch: usize, tol: f64) -> Option<usize> {
-    settle_time_of(
-        OnlineEstimator::new(cfg, false).unwrap(),
-        u,
-        y,
-        k_switch,
-        tol,
-    )
+    let mut m = Mrgia::new(cfg).unwrap();
+    let step = |u, y| {
+        m.update(u, y);
+        m.estimate()
+    };
+    settle_time_of(step, u, y, k_switch, tol)
 }
 
-/// [`settle_time`] of any on-line estimator (plain or refined).
+/// [`settle_time`] of any on-line estimator (plain or refined): `step(u, y)` takes one sample and returns
+/// the estimate after it.
 pub(crate) fn settle_time_of(
-    mut est: OnlineEstimator,
+    mut step: impl FnMut(f64, f64) -> Estimate,
     u: &[f64],
     y: &[f64],
     k_switch: usize,
@@ -725,8 +724,7 @@ pub(crate) fn settle_time_of(
     let (c1, c2) = (0.75, 1.5);
     let mut last_bad = None;
     for k in 0..u.len() {
-        est.update(u[k], y[k]);
-        let e = est.estimate();
+        let e = step(u[k], y[k]);
         if k >= k_switch && (((e.c1 - c1) / c1).abs() > tol || ((e.c2 - c2) / c2).abs() > tol) {
             last_bad = Some(k);
         }

@@ -221,20 +221,15 @@ fn wear_step_is_tracked_and_the_errors_widen() {
         let u = paper_input(n, s);
         let w = wear_data(&u, k_switch, 1.5, 0.0, s);
         let y = wear_data(&u, k_switch, 1.5, std_dev(&w[..k_switch]) / 43.0, s);
-        let plain = settle_time_of(
-            OnlineEstimator::new(cfg, false).unwrap(),
-            &u,
-            &y,
-            k_switch,
-            0.05,
-        );
-        let refined = settle_time_of(
-            OnlineEstimator::new(cfg, true).unwrap(),
-            &u,
-            &y,
-            k_switch,
-            0.05,
-        );
+        let settle = |refine| {
+            let mut est = OnlineEstimator::new(cfg, refine).unwrap();
+            let step = |u, y| {
+                est.update(u, y);
+                est.estimate()
+            };
+            settle_time_of(step, &u, &y, k_switch, 0.05)
+        };
+        let (plain, refined) = (settle(false), settle(true));
         let mut r = Refined::new(cfg).unwrap();
         let mut se_before = 0.0;
         let mut se_after = 0.0f64;

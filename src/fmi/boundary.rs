@@ -1,18 +1,22 @@
-//! The C boundary both protocol layers share: reading the importer's pointers (each in one small helper,
-//! with its safety contract), the panic guard and the state check around every call on an instance.
+//! The C boundary both protocol layers share: every access to the importer's memory (each in one small
+//! helper, with its safety contract), making and freeing instances, the panic guard and the state check
+//! around every call on an instance, and the bodies the two protocols' functions have in common.
 //!
 //! FMI 2.0 and FMI 3.0 agree on what these need: a component is NULL or a live instance called by one
-//! thread at a time; arrays hold the elements their counts say; strings are NUL-terminated; the status
-//! values from OK to Fatal are the same numbers.
+//! thread at a time; arrays hold the elements their counts say; strings are NUL-terminated. Each function
+//! that answers a call returns the protocol's own C status: the core's [`Status`] coded by the call's
+//! [`Api::code`], the layer's edge.
 
-use super::ffi::{Fmi2Status, Fmi2StatusC};
-use super::instance::{Api, Instance, SavedState, StepOutcome};
-use super::state::State;
+use super::fmu_state::SavedState;
+use super::instance::Instance;
+use super::log::Logger;
+use super::registry;
+use super::state::{Api, State};
+use super::status::{Outcome, Status};
+use super::timing::StepOutcome;
 use super::vars::{Value, VarType};
 use std::ffi::{CStr, c_char, c_void};
 use std::panic::{AssertUnwindSafe, catch_unwind};
-
-pub type Res = Result<Fmi2Status, String>;
 
 pub fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
     p.downcast_ref::<&str>()
@@ -25,21 +29,37 @@ pub fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
 ///
 /// # Safety
 /// `c` is NULL or a pointer that the layer's instantiate function returned and its free function has not
-/// freed, and no
-/// other call on the same instance runs meanwhile: the importer's side of the standard.
+/// freed, and no other call on the same instance runs meanwhile: the importer's side of the standard.
 pub unsafe fn instance<'a>(c: *mut c_void) -> Option<&'a mut Instance> {
     // SAFETY: the caller's promise above; `as_mut` turns NULL into `None`.
     unsafe { c.cast::<Instance>().as_mut() }
 }
 
-/// Run `f` on the instance (refusing a NULL component): state check, panic guard, error logging.
-pub fn with_instance(
-    inst: Option<&mut Instance>,
+/// A new instance of the FMU whose GUID (FMI 2.0) or instantiation token (FMI 3.0, `what` names which) is
+/// `guid`, among those the binary registered ([`registry::registry`]), as the pointer the instantiate
+/// function hands out; [`free_instance`] takes it back.
+pub fn new_instance(
     call: impl Api,
-    f: impl FnOnce(&mut Instance) -> Res,
-) -> Fmi2StatusC {
+    name: &str,
+    (what, guid): (&str, &str),
+    logger: impl Logger + 'static,
+    logging_on: bool,
+) -> Result<*mut c_void, String> {
+    let slave = registry::registry().instantiate(guid, what)?;
+    let inst = Box::new(Instance::new(name, logger, logging_on, slave));
+    inst.log_call(call, || format!("instanceName={name}, {what}={guid}"));
+    Ok(Box::into_raw(inst).cast())
+}
+
+/// Run `f` on the instance (refusing a NULL component): state check, panic guard, error logging; the
+/// answer in the protocol's C status.
+pub fn with_instance<C: Api>(
+    inst: Option<&mut Instance>,
+    call: C,
+    f: impl FnOnce(&mut Instance) -> Outcome,
+) -> C::Code {
     let Some(inst) = inst else {
-        return Fmi2Status::Error as Fmi2StatusC;
+        return C::code(Status::Error);
     };
     let result = catch_unwind(AssertUnwindSafe(|| {
         inst.check_state(call)?;
@@ -52,18 +72,18 @@ pub fn with_instance(
             if inst.layer.state != State::Fatal {
                 inst.layer.state = State::Error;
             }
-            Fmi2Status::Error
+            Status::Error
         }
         Err(p) => {
             // A panic is a bug in this library; the instance may be inconsistent, so it goes to the error
-            // state, from which fmi2Reset rebuilds it.
+            // state, from which a reset rebuilds it.
             let text = panic_text(p.as_ref());
             inst.log_error(call, &format!("internal error: {text}"));
             inst.layer.state = State::Error;
-            Fmi2Status::Error
+            Status::Error
         }
     };
-    status as Fmi2StatusC
+    C::code(status)
 }
 
 /// The largest element count a slice of `T` may have.
@@ -120,6 +140,15 @@ pub unsafe fn c_str<'a>(p: *const c_char, what: &str) -> Result<&'a str, String>
         .map_err(|_| format!("{what} is not valid UTF-8"))
 }
 
+/// A copy of the importer's value at `p` (a struct it passes by address), or `None` for NULL.
+///
+/// # Safety
+/// `p` is NULL or points to an initialised `T`.
+pub unsafe fn read_in<T: Copy>(p: *const T) -> Option<T> {
+    // SAFETY: NULL becomes `None`; otherwise readable by the caller's promise; `T: Copy` is copied out.
+    unsafe { p.as_ref() }.copied()
+}
+
 /// Store `value` in the importer's output variable at `p`, refusing NULL.
 ///
 /// # Safety
@@ -169,16 +198,16 @@ pub unsafe fn read_state_slot(
     clippy::too_many_arguments,
     reason = "the C signature's arguments, passed on unchanged"
 )]
-pub unsafe fn get_values<T>(
+pub unsafe fn get_values<C: Api, T>(
     c: *mut c_void,
-    call: impl Api,
+    call: C,
     ty: VarType,
     vr: *const u32,
     nvr: usize,
     value: *mut T,
     n_values: usize,
     convert: impl Fn(&Value) -> T,
-) -> Fmi2StatusC {
+) -> C::Code {
     // SAFETY: `c` as this function's caller promises.
     let inst = unsafe { instance(c) };
     with_instance(inst, call, |inst| {
@@ -189,7 +218,7 @@ pub unsafe fn get_values<T>(
         let out = unsafe { slice_mut(value, nvr, "the values") }?;
         // No allocation: the values go straight to the caller's array.
         inst.get_with(ty, vrs, |k, v| out[k] = convert(v))?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -202,16 +231,16 @@ pub unsafe fn get_values<T>(
     clippy::too_many_arguments,
     reason = "the C signature's arguments, passed on unchanged"
 )]
-pub unsafe fn set_values<T: Copy>(
+pub unsafe fn set_values<C: Api, T: Copy>(
     c: *mut c_void,
-    call: impl Api,
+    call: C,
     ty: VarType,
     vr: *const u32,
     nvr: usize,
     value: *const T,
     n_values: usize,
     convert: impl Fn(T) -> Result<Value, String>,
-) -> Fmi2StatusC {
+) -> C::Code {
     // SAFETY: `c` as this function's caller promises.
     let inst = unsafe { instance(c) };
     with_instance(inst, call, |inst| {
@@ -222,7 +251,7 @@ pub unsafe fn set_values<T: Copy>(
         let vals = unsafe { slice(value, nvr, "the values") }?;
         // No allocation: each value is converted where it is checked and again where it is applied.
         inst.set_with(ty, vrs, |k| convert(vals[k]))?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -243,11 +272,7 @@ pub fn check_counts(nvr: usize, n_values: usize) -> Result<(), String> {
 ///
 /// # Safety
 /// `c` as for [`instance`]; `state` is NULL or the address of the importer's FMU state variable.
-pub unsafe fn get_fmu_state(
-    c: *mut c_void,
-    call: impl Api,
-    state: *mut *mut c_void,
-) -> Fmi2StatusC {
+pub unsafe fn get_fmu_state<C: Api>(c: *mut c_void, call: C, state: *mut *mut c_void) -> C::Code {
     // SAFETY: `c` as this function's caller promises.
     let inst = unsafe { instance(c) };
     with_instance(inst, call, |inst| {
@@ -257,7 +282,7 @@ pub unsafe fn get_fmu_state(
         let issued = inst.issue_state(existing, saved)?.cast::<c_void>();
         // SAFETY: the same variable, writable too.
         unsafe { write_out(state, issued, "FMUstate") }?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -265,7 +290,7 @@ pub unsafe fn get_fmu_state(
 ///
 /// # Safety
 /// `c` as for [`instance`]. `state` is compared with the instance's states, never read through otherwise.
-pub unsafe fn set_fmu_state(c: *mut c_void, call: impl Api, state: *mut c_void) -> Fmi2StatusC {
+pub unsafe fn set_fmu_state<C: Api>(c: *mut c_void, call: C, state: *mut c_void) -> C::Code {
     // SAFETY: `c` as this function's caller promises.
     let inst = unsafe { instance(c) };
     with_instance(inst, call, |inst| {
@@ -273,7 +298,7 @@ pub unsafe fn set_fmu_state(c: *mut c_void, call: impl Api, state: *mut c_void) 
             return Err("FMUstate is NULL".into());
         }
         inst.restore_issued_state(state as *const SavedState)?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -282,11 +307,7 @@ pub unsafe fn set_fmu_state(c: *mut c_void, call: impl Api, state: *mut c_void) 
 ///
 /// # Safety
 /// `c` as for [`instance`]; `state` is NULL or the address of the importer's FMU state variable.
-pub unsafe fn free_fmu_state(
-    c: *mut c_void,
-    call: impl Api,
-    state: *mut *mut c_void,
-) -> Fmi2StatusC {
+pub unsafe fn free_fmu_state<C: Api>(c: *mut c_void, call: C, state: *mut *mut c_void) -> C::Code {
     // SAFETY: `c` as this function's caller promises.
     let inst = unsafe { instance(c) };
     with_instance(inst, call, |inst| {
@@ -297,7 +318,7 @@ pub unsafe fn free_fmu_state(
             // SAFETY: the same variable, writable too.
             unsafe { write_out(state, std::ptr::null_mut(), "FMUstate") }?;
         }
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -305,12 +326,12 @@ pub unsafe fn free_fmu_state(
 ///
 /// # Safety
 /// `c` as for [`instance`]; `size` is NULL or the address of the importer's variable.
-pub unsafe fn serialized_size(
+pub unsafe fn serialized_size<C: Api>(
     c: *mut c_void,
-    call: impl Api,
+    call: C,
     state: *mut c_void,
     size: *mut usize,
-) -> Fmi2StatusC {
+) -> C::Code {
     // SAFETY: `c` as this function's caller promises.
     let inst = unsafe { instance(c) };
     with_instance(inst, call, |inst| {
@@ -320,7 +341,7 @@ pub unsafe fn serialized_size(
         let n = inst.issued_state(state as *const SavedState)?.bytes.len();
         // SAFETY: `size` is the address of the importer's variable (the caller).
         unsafe { write_out(size, n, "size") }?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -328,13 +349,13 @@ pub unsafe fn serialized_size(
 ///
 /// # Safety
 /// `c` as for [`instance`]; `bytes` is NULL or a buffer of `size` bytes.
-pub unsafe fn serialize(
+pub unsafe fn serialize<C: Api>(
     c: *mut c_void,
-    call: impl Api,
+    call: C,
     state: *mut c_void,
     bytes: *mut u8,
     size: usize,
-) -> Fmi2StatusC {
+) -> C::Code {
     // SAFETY: `c` as this function's caller promises.
     let inst = unsafe { instance(c) };
     with_instance(inst, call, |inst| {
@@ -351,7 +372,7 @@ pub unsafe fn serialize(
         // SAFETY: the importer passes a buffer of `size` bytes (the caller).
         let out = unsafe { slice_mut(bytes, size, "serializedState") }?;
         out.copy_from_slice(&saved.bytes);
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
@@ -360,13 +381,13 @@ pub unsafe fn serialize(
 /// # Safety
 /// `c` as for [`instance`]; `bytes` is NULL or `size` bytes; `state` is NULL or the address of the
 /// importer's FMU state variable.
-pub unsafe fn deserialize(
+pub unsafe fn deserialize<C: Api>(
     c: *mut c_void,
-    call: impl Api,
+    call: C,
     bytes: *const u8,
     size: usize,
     state: *mut *mut c_void,
-) -> Fmi2StatusC {
+) -> C::Code {
     // SAFETY: `c` as this function's caller promises.
     let inst = unsafe { instance(c) };
     with_instance(inst, call, |inst| {
@@ -381,24 +402,24 @@ pub unsafe fn deserialize(
         let issued = inst.issue_state(existing, saved)?.cast::<c_void>();
         // SAFETY: the same variable, writable too.
         unsafe { write_out(state, issued, "FMUstate") }?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }
 
 /// One communication step on the instance, with the sampled-data timing of [`Instance::do_step`]. A step
 /// the model's limit cuts short answers Discard: the instance goes to the step-failed state, from which the
 /// master reads the last successful time, then terminates or restores an FMU state and retries shorter.
-pub fn do_step(inst: &mut Instance, call: impl Api, t: f64, h: f64) -> Res {
+pub fn do_step(inst: &mut Instance, call: impl Api, t: f64, h: f64) -> Outcome {
     inst.log_call(call, || {
         format!("currentCommunicationPoint={t}, communicationStepSize={h}")
     });
     match inst.do_step(t, h)? {
-        StepOutcome::Complete => Ok(Fmi2Status::Ok),
+        StepOutcome::Complete => Ok(Status::Ok),
         StepOutcome::Cut { at, reached, limit } => {
             inst.layer.state = State::StepFailed;
             if inst.log.discards {
                 inst.emit(
-                    Fmi2Status::Discard,
+                    Status::Discard,
                     "logStatusDiscard",
                     &format!(
                         "{}: the step from {t} by {h} reaches {reached} sample instants; {} takes at most \
@@ -410,7 +431,7 @@ pub fn do_step(inst: &mut Instance, call: impl Api, t: f64, h: f64) -> Res {
                     ),
                 );
             }
-            Ok(Fmi2Status::Discard)
+            Ok(Status::Discard)
         }
     }
 }
@@ -442,13 +463,13 @@ pub unsafe fn free_instance(c: *mut c_void, call: impl Api) {
 /// # Safety
 /// `c` as for [`instance`]; `categories` is NULL or holds `n_categories` strings, each NULL or
 /// NUL-terminated.
-pub unsafe fn set_debug_logging(
+pub unsafe fn set_debug_logging<C: Api>(
     c: *mut c_void,
-    call: impl Api,
+    call: C,
     logging_on: bool,
     n_categories: usize,
     categories: *const *const c_char,
-) -> Fmi2StatusC {
+) -> C::Code {
     // SAFETY: `c` as this function's caller promises.
     let inst = unsafe { instance(c) };
     with_instance(inst, call, |inst| {
@@ -460,6 +481,6 @@ pub unsafe fn set_debug_logging(
             .map(|&p| unsafe { c_str(p, "a category") }.map(str::to_string))
             .collect::<Result<Vec<_>, _>>()?;
         inst.set_debug_logging(logging_on, &cats)?;
-        Ok(Fmi2Status::Ok)
+        Ok(Status::Ok)
     })
 }

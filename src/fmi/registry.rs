@@ -1,9 +1,13 @@
-//! The FMUs one binary serves. Each adapter registers its [`Model`] here (the crate's list is `crate::FMUS`),
-//! and a protocol layer picks the model by the GUID (FMI 2.0) or instantiation token (FMI 3.0) the importer
-//! passes, so that neither layer names a model.
+//! The FMUs one binary serves, and the seam through which they register.
+//!
+//! A protocol layer picks the model by the GUID (FMI 2.0) or instantiation token (FMI 3.0) the importer
+//! passes, through [`new_instance`](super::boundary::new_instance), so that neither layer names a model. The
+//! core declares the seam, the [`Fmus`] trait; the crate's adapters implement it once, for [`Binary`]
+//! (`crate::fmus`), and nothing in the core or the layers names them or their module: the compiler finds the
+//! one implementation.
 
-use super::Model;
-use super::instance::{Adapter, Slave};
+use super::adapter::{Adapter, Slave};
+use super::model::Model;
 
 /// One registered FMU: its identity and how to make a fresh instance of its model.
 pub struct Entry {
@@ -58,4 +62,19 @@ impl Registry {
             }
         }
     }
+}
+
+/// The seam: the FMUs a binary serves. Declared here, implemented once for [`Binary`] by the crate that holds
+/// the models; a binary without an implementation does not compile.
+pub trait Fmus {
+    fn registry() -> &'static Registry;
+}
+
+/// The binary being built, as the seam sees it (a type with no values: only its [`Fmus`] implementation
+/// matters).
+pub enum Binary {}
+
+/// The FMUs of this binary (through the seam, [`Fmus`]).
+pub fn registry() -> &'static Registry {
+    <Binary as Fmus>::registry()
 }
