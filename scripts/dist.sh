@@ -45,23 +45,24 @@ rust_for() {
     build_std=(-Zbuild-std=std,panic_unwind)
 }
 
-# The FMU-only library, as build.rs builds it (build/package.rs), for another target.
-lib_args=(--profile fmu --lib --no-default-features --target-dir target/fmu-cross)
+# The FMU-only library, as build.rs builds it (build/package.rs), for another target, into the same folder as
+# build.rs's own build. BACKLASH_FMU_NESTED tells build.rs that this is that build (no packaging inside it).
+lib_args=(--profile fmu --lib --no-default-features --target-dir target/fmu-build)
 
 say "x86_64 Linux: cargo build --release (the FMUs of target/fmu and target/fmu3)"
 BACKLASH_FMU_PORTABLE=require cargo build --release
 
 say "x86_64 Windows: x86_64-pc-windows-gnu"
 rust_for x86_64-pc-windows-gnu
-env "${rust_env[@]}" CARGO_TARGET_X86_64_PC_WINDOWS_GNU_LINKER=x86_64-w64-mingw32-gcc \
+env BACKLASH_FMU_NESTED=1 "${rust_env[@]}" CARGO_TARGET_X86_64_PC_WINDOWS_GNU_LINKER=x86_64-w64-mingw32-gcc \
     cargo build "${lib_args[@]}" --target x86_64-pc-windows-gnu "${build_std[@]}"
-win=target/fmu-cross/x86_64-pc-windows-gnu/fmu/backlash.dll
+win=target/fmu-build/x86_64-pc-windows-gnu/fmu/backlash.dll
 
 say "aarch64 Linux: aarch64-unknown-linux-gnu.2.17"
 rust_for aarch64-unknown-linux-gnu
-env PATH="$venv_bin:$PATH" "${rust_env[@]}" \
+env BACKLASH_FMU_NESTED=1 PATH="$venv_bin:$PATH" "${rust_env[@]}" \
     "$venv_bin/cargo-zigbuild" zigbuild "${lib_args[@]}" --target aarch64-unknown-linux-gnu.2.17 "${build_std[@]}"
-arm=target/fmu-cross/aarch64-unknown-linux-gnu/fmu/libbacklash.so
+arm=target/fmu-build/aarch64-unknown-linux-gnu/fmu/libbacklash.so
 
 say "merge into target/dist"
 rm -rf target/dist
