@@ -50,11 +50,20 @@ impl PlantSpec {
             .collect()
     }
 
-    /// The plant FMU's parameters with their type, e.g. `c1_rate (Real)`, for help texts.
-    pub fn described_names() -> Vec<String> {
-        parameters()
-            .map(|(_, v)| format!("{} ({})", v.name, v.ty.name()))
-            .collect()
+    /// A parameter of the plant FMU in words, for help texts: its type, range and start value, e.g.
+    /// `Integer, min 1, max 64, start 1`; `None` for a name the FMU lacks.
+    pub fn describe(name: &str) -> Option<String> {
+        let (_, v) = parameter(name)?;
+        let mut words = vec![v.ty.name().to_string()];
+        words.extend(v.min.map(|m| format!("min {m}")));
+        words.extend(v.max.map(|m| format!("max {m}")));
+        match v.start {
+            Start::Real(x) => words.push(format!("start {x}")),
+            Start::Integer(x) => words.push(format!("start {x}")),
+            Start::Boolean(x) => words.push(format!("start {x}")),
+            Start::None | Start::String(_) => {}
+        }
+        Some(words.join(", "))
     }
 
     /// Sets `name` to a number (any FMU parameter but `a` and `b`); an unknown name is refused in words.
@@ -281,6 +290,11 @@ mod tests {
             assert!(names.contains(&n), "{n}");
         }
         assert!(!names.contains(&"u") && !names.contains(&"y"));
+        assert_eq!(
+            PlantSpec::describe("delay").as_deref(),
+            Some("Integer, min 1, max 64, start 1")
+        );
+        assert_eq!(PlantSpec::describe("u"), None);
     }
 
     #[test]

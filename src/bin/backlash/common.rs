@@ -120,7 +120,10 @@ fn add_flags(mut cmd: Command, names: &[&'static str]) -> Command {
                 }
             ))
         } else {
-            arg.help(format!("The FMU's parameter {name}"))
+            arg.help(format!(
+                "{name} ({})",
+                PlantSpec::describe(name).unwrap_or_default()
+            ))
         });
     }
     cmd
