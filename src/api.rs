@@ -3,9 +3,16 @@
 //! functions on NumPy arrays). The keys are those of the contract; the program and the package differ only in
 //! what belongs to a file (`file`, `decimate`, `validate_on`, `report`).
 
+mod plant;
+mod record;
+
+pub use plant::{LIST_NAMES, PlantSpec, SpecValue, simulate_plant};
+pub use record::{
+    InputCheck, MIN_SAMPLES_PER_PARAMETER, Record, RecordColumns, RecordOptions, sample_period,
+};
+
 use std::time::{Duration, Instant};
 
-use serde::Deserialize;
 use serde_json::{Value, json};
 
 use crate::diagnose::engine::{DiagnoseConfig, DiagnoseError, Diagnosis};
@@ -18,7 +25,8 @@ use crate::identify::oe::online::OnlineEstimator;
 use crate::identify::oe::{
     self, OeConfig, OeError, OeFit, StdErr, Uncertainty, estimate_of, param_names, plant_of,
 };
-use crate::plant::{MAX_DELAY, ParamError, Plant, PlantOutput, PlantParams};
+use crate::io::CsvError;
+use crate::plant::{MAX_DELAY, ParamError, PlantOutput, PlantParams};
 
 /// Why a computation could not run: the message names what was wrong.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -37,6 +45,22 @@ pub enum ApiError {
     Diagnose(#[from] DiagnoseError),
     #[error(transparent)]
     Frequency(#[from] FrequencyError),
+    /// A data file that cannot be read as a record: the message, naming the file, line and column, with its
+    /// causes.
+    #[error("{0}")]
+    Csv(String),
+}
+
+impl From<CsvError> for ApiError {
+    fn from(e: CsvError) -> Self {
+        let mut message = e.to_string();
+        let mut source = std::error::Error::source(&e);
+        while let Some(s) = source {
+            message.push_str(&format!(": {s}"));
+            source = s.source();
+        }
+        ApiError::Csv(message)
+    }
 }
 
 /// Checks named arrays of one record: the same length, every value finite, at least `min` samples. Returns the
@@ -71,65 +95,10 @@ pub fn check_record(arrays: &[(&str, &[f64])], min: usize) -> Result<usize, ApiE
     Ok(a0.len())
 }
 
-/// Plant parameters by the plant FMU's names (`a` and `b` as lists); unset ones are paper 000's example.
-#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PlantSpec {
-    /// a1..a_na (na is their number, at most 4).
-    pub a: Option<Vec<f64>>,
-    /// b0..b_nb (nb + 1 values, 1 to 5).
-    pub b: Option<Vec<f64>>,
-    pub delay: Option<usize>,
-    pub m1: Option<f64>,
-    pub m2: Option<f64>,
-    pub c1: Option<f64>,
-    pub c2: Option<f64>,
-    pub noise_std: Option<f64>,
-    pub noise_seed: Option<u64>,
-}
-
-impl PlantSpec {
-    /// The parameters, checked.
-    pub fn params(&self) -> Result<PlantParams, ApiError> {
-        let mut p = PlantParams::PAPER;
-        if let Some(a) = &self.a {
-            if a.len() > 4 {
-                return Err(ApiError::Setting(format!(
-                    "a has {} coefficients; at most 4 (a1 to a4) are supported",
-                    a.len()
-                )));
-            }
-            p.arx.na = a.len();
-            p.arx.a = [0.0; 4];
-            p.arx.a[..a.len()].copy_from_slice(a);
-        }
-        if let Some(b) = &self.b {
-            if b.is_empty() || b.len() > 5 {
-                return Err(ApiError::Setting(format!(
-                    "b has {} coefficients; 1 to 5 (b0 to b4) are supported",
-                    b.len()
-                )));
-            }
-            p.arx.nb = b.len() - 1;
-            p.arx.b = [0.0; 5];
-            p.arx.b[..b.len()].copy_from_slice(b);
-        }
-        p.arx.delay = self.delay.unwrap_or(p.arx.delay);
-        p.backlash.m1 = self.m1.unwrap_or(p.backlash.m1);
-        p.backlash.m2 = self.m2.unwrap_or(p.backlash.m2);
-        p.backlash.c1 = self.c1.unwrap_or(p.backlash.c1);
-        p.backlash.c2 = self.c2.unwrap_or(p.backlash.c2);
-        p.noise_std = self.noise_std.unwrap_or(p.noise_std);
-        p.noise_seed = self.noise_seed.unwrap_or(p.noise_seed);
-        p.validate()?;
-        Ok(p)
-    }
-}
-
 /// The plant on an input sequence (as `backlash simulate`): the outputs of every sample.
 pub fn simulate(spec: &PlantSpec, u: &[f64]) -> Result<Vec<PlantOutput>, ApiError> {
     check_record(&[("u", u)], 0)?;
-    Ok(Plant::simulate(spec.params()?, u)?)
+    Ok(simulate_plant(spec.plant()?, u))
 }
 
 /// MRGIA's setting: paper 000's or the project's recommended one, with any value replaced.
@@ -179,10 +148,16 @@ impl MrgiaSettings {
     }
 }
 
-/// The JSON of `identify mrgia` for an estimator that has seen `samples` samples, `updates` of them updating;
-/// a refining estimator adds `refine` and `std_err` (as the FMU's `*_se` outputs: 0 while unknown, during the
-/// warm-up).
-pub fn mrgia_json(est: &OnlineEstimator, samples: u64, updates: u64, setting: &str) -> Value {
+/// The JSON of `identify mrgia` for an estimator that has seen `samples` samples, `updates` of them updating,
+/// whose input `check` saw; a refining estimator adds `refine` and `std_err` (as the FMU's `*_se` outputs: 0
+/// while unknown, during the warm-up).
+pub fn mrgia_json(
+    est: &OnlineEstimator,
+    samples: u64,
+    updates: u64,
+    setting: &str,
+    check: &InputCheck,
+) -> Value {
     let e = est.estimate();
     let cfg = est.config();
     let mut out = json!({
@@ -197,6 +172,7 @@ pub fn mrgia_json(est: &OnlineEstimator, samples: u64, updates: u64, setting: &s
         "updates": updates,
         "setting": setting,
         "config": cfg,
+        "warnings": check.warnings(samples, cfg.n_params()),
     });
     if est.refining_kind() {
         out["refine"] = json!(true);
@@ -221,8 +197,10 @@ pub fn identify_mrgia(
     let mut est = OnlineEstimator::new(settings.config(na, nb, delay)?, settings.refine)?;
     let every = (n / 100).max(1);
     let mut updates = 0u64;
+    let mut check = InputCheck::default();
     for (k, (&uk, &yk)) in u.iter().zip(y).enumerate() {
         updates += u64::from(est.update(uk, yk).updating);
+        check.push(uk);
         if (k + 1) % every == 0 {
             progress(k + 1, n);
         }
@@ -230,7 +208,7 @@ pub fn identify_mrgia(
     if n % every != 0 {
         progress(n, n);
     }
-    Ok(mrgia_json(&est, n as u64, updates, settings.name()))
+    Ok(mrgia_json(&est, n as u64, updates, settings.name(), &check))
 }
 
 /// The settings of `identify oe`.
@@ -270,10 +248,22 @@ pub struct OeRun {
     pub bound: Option<Uncertainty>,
     /// Wall-clock time of the fit.
     pub seconds: f64,
+    /// What the input can tell.
+    pub check: InputCheck,
 }
 
 /// The output-error fit of `identify oe`: the structure (declared or chosen), the fit, the bound.
 pub fn identify_oe(u: &[f64], y: &[f64], opts: &OeOptions) -> Result<OeRun, ApiError> {
+    identify_oe_with_progress(u, y, opts, &|_| {})
+}
+
+/// [`identify_oe`], telling `progress` what it is doing at each stage.
+pub fn identify_oe_with_progress(
+    u: &[f64],
+    y: &[f64],
+    opts: &OeOptions,
+    progress: &dyn Fn(&str),
+) -> Result<OeRun, ApiError> {
     check_record(&[("u", u), ("y", y)], 0)?;
     if !(1..=MAX_DELAY).contains(&opts.max_delay) {
         return Err(ApiError::Setting(format!(
@@ -283,7 +273,10 @@ pub fn identify_oe(u: &[f64], y: &[f64], opts: &OeOptions) -> Result<OeRun, ApiE
     }
     let structure = match opts.structure {
         Some(s) => StructureChoice::declared(s),
-        None => select_for_record(u, y, opts.max_delay),
+        None => {
+            progress("choosing the structure (orders and delay)");
+            select_for_record(u, y, opts.max_delay)
+        }
     };
     let s = structure.chosen;
     let mut cfg = OeConfig::new(s.na, s.nb, s.delay);
@@ -293,6 +286,10 @@ pub fn identify_oe(u: &[f64], y: &[f64], opts: &OeOptions) -> Result<OeRun, ApiE
     }
     cfg.validate()?;
     let started = Instant::now();
+    progress(&format!(
+        "fitting the output-error model ({})",
+        structure.chosen
+    ));
     let fit = oe::fit(&cfg, u, y)?;
     let seconds = started.elapsed().as_secs_f64();
     let bound = match opts.crb_noise_std {
@@ -305,6 +302,7 @@ pub fn identify_oe(u: &[f64], y: &[f64], opts: &OeOptions) -> Result<OeRun, ApiE
         fit,
         bound,
         seconds,
+        check: InputCheck::of(u),
     })
 }
 
@@ -341,6 +339,7 @@ impl OeRun {
             "nb": s.nb,
             "delay": s.delay,
             "structure": self.structure,
+            "warnings": self.check.warnings(f.samples as u64, self.fit.uncertainty.names.len()),
         });
         merge(&mut out, extra);
         if let Some(c) = &self.bound {
@@ -366,11 +365,22 @@ pub struct CrbRun {
     pub truth: PlantParams,
     pub bound: Uncertainty,
     pub rel: Vec<Option<f64>>,
+    /// What the input can tell.
+    pub check: InputCheck,
 }
+
+/// The parameters of the model whose bound `crb` computes (the others of the plant are not part of it).
+pub const CRB_NAMES: [&str; 7] = ["a", "b", "delay", "m1", "m2", "c1", "c2"];
 
 /// The Cramer-Rao bound of the output-error model of `truth` (its noise settings are ignored) on input `u`.
 pub fn crb(u: &[f64], truth: &PlantSpec, noise: CrbNoise) -> Result<CrbRun, ApiError> {
     check_record(&[("u", u)], 0)?;
+    if let Some(name) = truth.given().find(|n| !CRB_NAMES.contains(n)) {
+        return Err(ApiError::Setting(format!(
+            "the bound is for the output-error model of {}; {name} is not one of its parameters",
+            CRB_NAMES.join(", ")
+        )));
+    }
     let truth = PlantParams {
         noise_std: 0.0,
         noise_seed: 0,
@@ -395,7 +405,12 @@ pub fn crb(u: &[f64], truth: &PlantSpec, noise: CrbNoise) -> Result<CrbRun, ApiE
         .zip(&bound.theta)
         .map(|(s, t)| (*t != 0.0).then(|| s / t.abs()))
         .collect();
-    Ok(CrbRun { truth, bound, rel })
+    Ok(CrbRun {
+        truth,
+        bound,
+        rel,
+        check: InputCheck::of(u),
+    })
 }
 
 impl CrbRun {
@@ -412,6 +427,7 @@ impl CrbRun {
             "rel_std": named(&c.names, &self.rel),
             "covariance": c.covariance,
             "names": c.names,
+            "warnings": self.check.warnings(c.samples as u64, c.names.len()),
         });
         if let Some(r) = target_rel {
             out["plan"] = plan_json(c, r)?;
@@ -492,85 +508,64 @@ pub fn frequency_json(a: &Analysis) -> Value {
     out
 }
 
-/// The settings of `backlash diagnose` that do not concern a file.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DiagnoseOptions {
-    /// The declared structure; `None`: chosen from the data.
-    pub structure: Option<Structure>,
-    /// The longest delay the structure selection tries.
-    pub max_delay: usize,
-    /// Share of the record used for fitting (0.3 to 0.95).
-    pub fit_fraction: f64,
-    /// Seed of the fit's perturbed restarts.
-    pub seed: u64,
-    /// The most effects the loop adds (1 to 9).
-    pub max_effects: usize,
-    /// Wall-clock budget in seconds (0 < budget <= 1e6).
-    pub time_budget: f64,
-}
-
-impl Default for DiagnoseOptions {
-    fn default() -> Self {
-        let d = DiagnoseConfig::auto();
-        Self {
-            structure: None,
-            max_delay: d.max_delay,
-            fit_fraction: d.fit_fraction,
-            seed: d.seed,
-            max_effects: d.max_effects,
-            time_budget: d.time_budget.as_secs_f64(),
-        }
+/// A wall-clock budget in seconds, checked (0 < budget <= 1e6), as the diagnosis takes it.
+pub fn time_budget(seconds: f64) -> Result<Duration, ApiError> {
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= 1e6) {
+        return Err(ApiError::Setting(format!(
+            "the time budget {seconds} must be a number of seconds between 0 and 1000000 (not 0)"
+        )));
     }
-}
-
-impl DiagnoseOptions {
-    /// The engine's configuration, checked where the engine does not check.
-    pub fn config(&self) -> Result<DiagnoseConfig, ApiError> {
-        let t = self.time_budget;
-        if !(t.is_finite() && t > 0.0 && t <= 1e6) {
-            return Err(ApiError::Setting(format!(
-                "the time budget {t} must be a number of seconds between 0 and 1000000 (not 0)"
-            )));
-        }
-        Ok(DiagnoseConfig {
-            structure: self.structure,
-            max_delay: self.max_delay,
-            fit_fraction: self.fit_fraction,
-            seed: self.seed,
-            max_effects: self.max_effects,
-            time_budget: Duration::from_secs_f64(t),
-            ..DiagnoseConfig::auto()
-        })
-    }
+    Ok(Duration::from_secs_f64(seconds))
 }
 
 /// `backlash diagnose` on a record.
-pub fn diagnose(u: &[f64], y: &[f64], opts: &DiagnoseOptions) -> Result<Diagnosis, ApiError> {
-    diagnose_with_progress(u, y, opts, &|_| {})
+pub fn diagnose(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<Diagnosis, ApiError> {
+    diagnose_with_progress(u, y, cfg, &|_| {})
 }
 
 /// [`diagnose`], telling `progress` what it is doing at each stage (from any thread).
 pub fn diagnose_with_progress(
     u: &[f64],
     y: &[f64],
-    opts: &DiagnoseOptions,
+    cfg: &DiagnoseConfig,
     progress: &(dyn Fn(&str) + Sync),
 ) -> Result<Diagnosis, ApiError> {
     check_record(&[("u", u), ("y", y)], 0)?;
     Ok(crate::diagnose::engine::diagnose_with_progress(
-        u,
-        y,
-        &opts.config()?,
-        progress,
+        u, y, cfg, progress,
     )?)
 }
 
-/// The JSON of `backlash diagnose` for a record with sample period `ts` (when known), without what belongs
-/// to a file.
-pub fn diagnosis_json(d: &Diagnosis, ts: Option<f64>) -> Value {
+/// What `Ts` means in a diagnosis without a known sample period.
+pub const NO_TS_NOTE: &str = "the sample period is not known (the Python functions take it as ts=): rates and \
+     frequencies are given per sample, and the keys per second or in Hz (c1_rate_per_s, frequency_hz, ...) are \
+     left out";
+
+/// The JSON of `backlash diagnose` for a record with sample period `ts` (when known), decimated by
+/// `decimate`, without what belongs to a file; with the record's `warnings`.
+pub fn diagnosis_json(d: &Diagnosis, u: &[f64], ts: Option<f64>, decimate: usize) -> Value {
     let mut out = serde_json::to_value(DiagnosisOut::new(d, ts)).expect("a diagnosis serialises");
     out["Ts"] = json!(ts);
+    if ts.is_none() {
+        out["Ts_note"] = json!(NO_TS_NOTE);
+    }
+    out["decimate"] = json!(decimate);
+    let s = d.structure.chosen;
+    let params = s.na + s.nb + 1 + 3;
+    out["warnings"] = json!(InputCheck::of(u).warnings(d.n_fit as u64, params));
     out
+}
+
+/// The record's input and output after decimation by `decimate` (block means), checked.
+pub fn decimated(u: &[f64], y: &[f64], decimate: usize) -> Result<[Vec<f64>; 2], ApiError> {
+    check_record(&[("u", u), ("y", y)], 0)?;
+    RecordOptions {
+        decimate,
+        ..RecordOptions::default()
+    }
+    .check()?;
+    let mut d = crate::stats::block_means(&[u, y], decimate).into_iter();
+    Ok([d.next().unwrap_or_default(), d.next().unwrap_or_default()])
 }
 
 #[cfg(test)]
@@ -597,15 +592,5 @@ mod tests {
             "2 samples are too few: at least 3 are needed"
         );
         assert_eq!(check_record(&[("u", &y), ("y", &y)], 2), Ok(2));
-    }
-
-    #[test]
-    fn plant_spec_refuses_too_many_coefficients_and_keeps_the_paper_defaults() {
-        let spec = PlantSpec {
-            a: Some(vec![0.1; 5]),
-            ..PlantSpec::default()
-        };
-        assert!(spec.params().unwrap_err().to_string().contains("at most 4"));
-        assert_eq!(PlantSpec::default().params().unwrap(), PlantParams::PAPER);
     }
 }

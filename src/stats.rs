@@ -51,6 +51,77 @@ pub fn quantile(v: &[f64], q: f64) -> Option<f64> {
     Some(s[i])
 }
 
+/// The median: the middle of the sorted values, the mean of the two middle ones for an even count; `None`
+/// for an empty slice.
+pub fn median(v: &[f64]) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let m = s.len() / 2;
+    Some(if s.len().is_multiple_of(2) {
+        0.5 * (s[m - 1] + s[m])
+    } else {
+        s[m]
+    })
+}
+
+/// Block means of a stream of rows: every `factor` rows of `width` values become one row of their means (an
+/// anti-alias mean before keeping one sample per block); a last, incomplete block is dropped. Factor 1 passes
+/// the rows through unchanged.
+#[derive(Debug, Clone)]
+pub struct BlockMean {
+    factor: usize,
+    sum: Vec<f64>,
+    count: usize,
+}
+
+impl BlockMean {
+    /// Means of `factor` (at least 1) rows of `width` values each.
+    pub fn new(factor: usize, width: usize) -> Self {
+        Self {
+            factor: factor.max(1),
+            sum: vec![0.0; width],
+            count: 0,
+        }
+    }
+
+    /// Adds a row; returns the block's means when this row completes a block.
+    pub fn push(&mut self, row: &[f64]) -> Option<&[f64]> {
+        if self.count == 0 {
+            self.sum.copy_from_slice(row);
+        } else {
+            self.sum.iter_mut().zip(row).for_each(|(s, v)| *s += v);
+        }
+        self.count += 1;
+        if self.count < self.factor {
+            return None;
+        }
+        self.count = 0;
+        if self.factor > 1 {
+            let n = self.factor as f64;
+            self.sum.iter_mut().for_each(|s| *s /= n);
+        }
+        Some(&self.sum)
+    }
+}
+
+/// The block means of whole columns (see [`BlockMean`]): each column `factor` times shorter.
+pub fn block_means(columns: &[&[f64]], factor: usize) -> Vec<Vec<f64>> {
+    let len = columns.iter().map(|c| c.len()).min().unwrap_or(0);
+    let mut out: Vec<Vec<f64>> = vec![Vec::with_capacity(len / factor.max(1)); columns.len()];
+    let mut block = BlockMean::new(factor, columns.len());
+    let mut row = vec![0.0; columns.len()];
+    for k in 0..len {
+        row.iter_mut().zip(columns).for_each(|(r, c)| *r = c[k]);
+        if let Some(m) = block.push(&row) {
+            out.iter_mut().zip(m).for_each(|(o, v)| o.push(*v));
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -69,5 +140,22 @@ mod tests {
         assert_eq!(std_dev(&[]), 0.0);
         assert_eq!(rms(std::iter::empty()), 0.0);
         assert_eq!(quantile(&[], 0.5), None);
+        assert_eq!(median(&[3.0, 1.0, 2.0]), Some(2.0));
+        assert_eq!(median(&[4.0, 1.0, 3.0, 2.0]), Some(2.5));
+        assert_eq!(median(&[]), None);
+    }
+
+    #[test]
+    fn block_means_drop_the_incomplete_block_and_pass_factor_one_through() {
+        let t: Vec<f64> = (0..10).map(f64::from).collect();
+        let u: Vec<f64> = (0..10).map(|k| f64::from(k * k)).collect();
+        let d = block_means(&[&t, &u], 4);
+        assert_eq!(d[0], [1.5, 5.5]);
+        assert_eq!(
+            d[1],
+            [(1.0 + 4.0 + 9.0) / 4.0, (16.0 + 25.0 + 36.0 + 49.0) / 4.0]
+        );
+        assert_eq!(block_means(&[&t], 1)[0], t);
+        assert_eq!(block_means(&[&t], 11)[0], Vec::<f64>::new());
     }
 }

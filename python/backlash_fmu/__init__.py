@@ -14,13 +14,19 @@ record too short, an order out of range) raises ValueError with the library's me
 import json
 import pathlib
 import sys
+import time
 
 import numpy as np
 
 from . import _backlash
 
 __version__ = _backlash.__version__
-__all__ = ["fmu_path", "simulate", "identify_mrgia", "identify_oe", "identify_frequency", "crb", "diagnose"]
+__all__ = ["fmu_path", "simulate", "identify_mrgia", "identify_oe", "identify_frequency", "crb", "diagnose",
+           "PLANT_PARAMETERS"]
+
+#: The names `simulate` takes: "a" and "b" (lists), then every parameter of BacklashPlant.fmu, read from its
+#: model description.
+PLANT_PARAMETERS = tuple(_backlash.plant_parameters())
 
 MODELS = ("BacklashPlant", "MrgiaEstimator")
 _HERE = pathlib.Path(__file__).resolve().parent
@@ -51,16 +57,21 @@ def _array(x, name):
     return a
 
 
-def _progress(progress):
-    """None/False: no progress; True: a bar on standard error (tqdm's when installed); a callable: called as
-    progress(done, total)."""
+def _reporter(progress, bar, signature):
+    """None/False: no progress; True: `bar()`; a callable: itself (called as `signature` says)."""
     if progress is None or progress is False:
         return None
     if callable(progress):
         return progress
     if progress is True:
-        return _Bar()
-    raise ValueError("progress must be None, True, False or a callable progress(done, total)")
+        return bar()
+    raise ValueError(f"progress must be None, True, False or a callable {signature}")
+
+
+def _progress(progress):
+    """For the functions that count samples: True is a bar on standard error (tqdm's when installed); a
+    callable is called as progress(done, total)."""
+    return _reporter(progress, _Bar, "progress(done, total)")
 
 
 class _Bar:
@@ -89,21 +100,48 @@ class _Bar:
         sys.stderr.flush()
 
 
+def _stages(progress):
+    """For the functions that go by stages (diagnose, identify_oe): True is the stage and the elapsed time on
+    standard error; a callable is called as progress(stage), stage a sentence."""
+    return _reporter(progress, _StageLine, "progress(stage)")
+
+
+class _StageLine:
+    """The current stage on one line of standard error, with the seconds since the first."""
+
+    def __init__(self):
+        self._start = time.monotonic()
+
+    def __call__(self, stage):
+        sys.stderr.write(f"\r\033[K{time.monotonic() - self._start:6.1f} s  {stage}")
+        sys.stderr.flush()
+
+    def close(self):
+        sys.stderr.write("\r\033[K")
+        sys.stderr.flush()
+
+
+def _with_stages(progress, call):
+    """call(callback) with the stage reporter of `progress`, its line cleared at the end."""
+    reporter = _stages(progress)
+    try:
+        return call(reporter)
+    finally:
+        if isinstance(reporter, _StageLine):
+            reporter.close()
+
+
 def _spec(params):
-    """Plant parameters as the library reads them (unknown names are refused there)."""
+    """Plant parameters as the library reads them (a dict; unknown names are refused there, by name)."""
     spec = {}
     for k, v in params.items():
         if v is None:
             continue
         if k in ("a", "b"):
             spec[k] = [float(c) for c in np.atleast_1d(v)]
-        elif k in ("delay", "noise_seed"):
-            if int(v) != v or v < 0:
-                raise ValueError(f"{k} = {v!r} must be a non-negative integer")
-            spec[k] = int(v)
         else:
-            spec[k] = float(v)
-    return json.dumps(spec)
+            spec[k] = v
+    return spec
 
 
 def _result(text, **file_keys):
@@ -115,33 +153,38 @@ def _result(text, **file_keys):
 def simulate(u, **params):
     """The plant on the input samples u: {"x": ..., "w": ..., "y": ...} (NumPy arrays, one value per sample).
 
-    params are the plant FMU's parameters: a (list a1..a_na), b (list b0..b_nb), delay, m1, m2, c1, c2,
-    noise_std, noise_seed; unset ones are paper 000's example (a = [0.45, 0.55], b = [0.8], delay 1, m1 1,
-    m2 1.5, c1 0.5, c2 1, no noise).
+    params are the plant FMU's parameters by their names (PLANT_PARAMETERS lists them all): a (list
+    a1..a_na, which sets na), b (list b0..b_nb, which sets nb), Ts, delay, m1, m2, c1, c2, noise_std,
+    noise_seed, and the test bench's effects (c1_rate, noise_phi, quant_step, ...; see docs/INTERFACE.md).
+    Unset ones keep the FMU's start values: paper 000's example (a = [0.45, 0.55], b = [0.8], delay 1, m1 1,
+    m2 1.5, c1 0.5, c2 1, no noise, Ts 1 s). An unknown name raises ValueError naming it.
     """
     x, w, y = _backlash.simulate(_array(u, "u"), _spec(params))
     return {"x": x, "w": w, "y": y}
 
 
 def identify_mrgia(u, y, na, nb, delay, recommended=False, *, refine=False, p0=None, rho_exp=None, rho_min=None,
-                   eps=None, sigma0=None, c_init=None, progress=None):
+                   eps=None, sigma0=None, c_init=None, progress=None, decimate=1):
     """MRGIA (paper 000) over the record: the dict of `backlash identify mrgia --json`.
 
     recommended selects the project's on-line setting; refine (the estimator FMU's `refine`) refines on-line to
     the output-error accuracy and adds `std_err`; p0 .. c_init replace single settings. progress: None
-    (default), True (a bar on standard error) or a callable progress(done, total).
+    (default), True (a bar on standard error) or a callable progress(done, total). decimate: average blocks of
+    that many samples into one first, as the command's --decimate.
     """
     text = _backlash.identify_mrgia(_array(u, "u"), _array(y, "y"), na, nb, delay, recommended, refine, p0,
-                                    rho_exp, rho_min, eps, sigma0, c_init, _progress(progress))
+                                    rho_exp, rho_min, eps, sigma0, c_init, _progress(progress), decimate)
     return _result(text, file=None)
 
 
 def identify_oe(u, y, na=None, nb=None, delay=None, *, max_delay=10, single_start=False, max_iter=None,
-                crb_noise_std=None, target_rel=None):
+                crb_noise_std=None, target_rel=None, progress=None, decimate=1):
     """The output-error fit with standard errors: the dict of `backlash identify oe --json`. Without na, nb and
-    delay the structure is chosen from the data (as the command does)."""
-    text = _backlash.identify_oe(_array(u, "u"), _array(y, "y"), na, nb, delay, max_delay, single_start,
-                                 max_iter, crb_noise_std, target_rel)
+    delay the structure is chosen from the data (as the command does). progress: None (default), True (the
+    stage on standard error) or a callable progress(stage). decimate: as the command's --decimate."""
+    text = _with_stages(progress, lambda report: _backlash.identify_oe(
+        _array(u, "u"), _array(y, "y"), na, nb, delay, max_delay, single_start, max_iter, crb_noise_std,
+        target_rel, report, decimate))
     return _result(text, file=None)
 
 
@@ -164,12 +207,19 @@ def crb(u, *, noise_std=None, snr=None, target_rel=None, **truth):
     return _result(text)
 
 
-def diagnose(u, y, na=None, nb=None, delay=None, **options):
+def diagnose(u, y, na=None, nb=None, delay=None, *, ts=None, max_delay=10, fit_fraction=0.7, seed=0,
+             max_effects=3, time_budget=300.0, decimate=1, progress=None):
     """The diagnosis of `backlash diagnose --json` as a dict: the held-out error before and after, and every
     effect the model lacks (`effect` the first, or None).
 
-    options: ts (sample period in s: adds per-second rates), max_delay (10), fit_fraction (0.7), seed (0),
-    max_effects (3), time_budget (300 s). Without na, nb and delay the structure is chosen from the data.
+    Options as the command's: ts (the sample period in s; the command reads it from the time column), max_delay,
+    fit_fraction, seed, max_effects, time_budget (s), decimate (average blocks of that many samples into one
+    first; orders and delays then count decimated samples). Without na, nb and delay the structure is chosen
+    from the data. Without ts the rates and frequencies are per sample only: the keys per second or in Hz
+    (c1_rate_per_s, frequency_hz, ...) are left out, and `Ts_note` says so. progress: None (default), True (the
+    stage on standard error) or a callable progress(stage). `warnings` lists what the record cannot support.
     """
-    text = _backlash.diagnose(_array(u, "u"), _array(y, "y"), na, nb, delay, **options)
-    return _result(text, file=None, decimate=1, validate_on=[], report=None)
+    text = _with_stages(progress, lambda report: _backlash.diagnose(
+        _array(u, "u"), _array(y, "y"), na, nb, delay, ts, max_delay, fit_fraction, seed, max_effects,
+        time_budget, decimate, report))
+    return _result(text, file=None, validate_on=[], report=None)

@@ -7,14 +7,16 @@
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
-use backlash::api::{
-    self, ApiError, CrbNoise, DiagnoseOptions, MrgiaSettings, OeOptions, PlantSpec,
-};
+use std::sync::Mutex;
+
+use backlash::api::{self, ApiError, CrbNoise, LIST_NAMES, MrgiaSettings, OeOptions, PlantSpec};
+use backlash::diagnose::engine::DiagnoseConfig;
 use backlash::diagnose::structure::Structure;
 use backlash::identify::frequency::analysis::AnalysisOptions;
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 /// The program (src/bin/backlash): `backlash_fmu`'s console script runs [`cli::run`].
 #[allow(
@@ -93,6 +95,43 @@ impl Progress {
     }
 }
 
+/// Stage reports to a Python callable `progress(stage)` (a sentence), from any thread, with the GIL taken
+/// back; the first exception it raises is kept (and later reports skipped) until the computation returns.
+struct Stages {
+    callback: Option<Py<PyAny>>,
+    error: Mutex<Option<PyErr>>,
+}
+
+impl Stages {
+    fn new(callback: Option<Py<PyAny>>) -> Self {
+        Self {
+            callback,
+            error: Mutex::new(None),
+        }
+    }
+
+    fn report(&self, stage: &str) {
+        let Some(cb) = &self.callback else {
+            return;
+        };
+        let mut error = self.error.lock().unwrap_or_else(|e| e.into_inner());
+        if error.is_none() {
+            Python::attach(|py| {
+                if let Err(e) = cb.call1(py, (stage,)) {
+                    *error = Some(e);
+                }
+            });
+        }
+    }
+
+    fn finish<T>(self, result: PyResult<T>) -> PyResult<T> {
+        match self.error.into_inner().unwrap_or_else(|e| e.into_inner()) {
+            Some(e) => Err(e),
+            None => result,
+        }
+    }
+}
+
 fn json_text(v: &serde_json::Value) -> String {
     v.to_string()
 }
@@ -100,16 +139,43 @@ fn json_text(v: &serde_json::Value) -> String {
 /// A NumPy array made here.
 type Array<'py> = Bound<'py, PyArray1<f64>>;
 
-/// simulate(u, spec_json) -> (x, w, y): the plant of `backlash simulate`; `spec_json` holds the parameters
-/// by name (`a`, `b` lists; unknown names are refused).
+/// The plant parameters of a dict (the plant FMU's names; lists for `a` and `b`), refused by name when
+/// unknown.
+fn plant_spec(params: &Bound<'_, PyDict>) -> PyResult<PlantSpec> {
+    let mut spec = PlantSpec::default();
+    let err = |e: ApiError| PyValueError::new_err(e.to_string());
+    for (k, v) in params.iter() {
+        let name: String = k.extract()?;
+        if LIST_NAMES.contains(&name.as_str()) {
+            let list: Vec<f64> = v.extract().map_err(|_| {
+                PyValueError::new_err(format!("{name} must be a list of numbers, not {v}"))
+            })?;
+            spec.set_list(&name, &list).map_err(err)?;
+        } else {
+            let x: f64 = v
+                .extract()
+                .map_err(|_| PyValueError::new_err(format!("{name} must be a number, not {v}")))?;
+            spec.set(&name, x).map_err(err)?;
+        }
+    }
+    Ok(spec)
+}
+
+/// plant_parameters() -> the names `simulate` takes: `a`, `b` (lists), then the plant FMU's parameters.
+#[pyfunction]
+fn plant_parameters() -> Vec<&'static str> {
+    PlantSpec::names()
+}
+
+/// simulate(u, params) -> (x, w, y): the plant of `backlash simulate`; `params` a dict of the plant FMU's
+/// parameters by name (`a`, `b` lists; unknown names are refused).
 #[pyfunction]
 fn simulate<'py>(
     py: Python<'py>,
     u: PyReadonlyArray1<'py, f64>,
-    spec_json: &str,
+    params: &Bound<'py, PyDict>,
 ) -> PyResult<(Array<'py>, Array<'py>, Array<'py>)> {
-    let spec: PlantSpec = serde_json::from_str(spec_json)
-        .map_err(|e| PyValueError::new_err(format!("plant parameters: {e}")))?;
+    let spec = plant_spec(params)?;
     let u = u.as_slice()?;
     let out = compute(py, || api::simulate(&spec, u))?;
     let col =
@@ -125,7 +191,7 @@ fn simulate<'py>(
 /// -> the JSON text of `identify mrgia`.
 #[pyfunction]
 #[pyo3(signature = (u, y, na, nb, delay, recommended=false, refine=false, p0=None, rho_exp=None, rho_min=None, eps=None,
-    sigma0=None, c_init=None, progress=None))]
+    sigma0=None, c_init=None, progress=None, decimate=1))]
 #[expect(
     clippy::too_many_arguments,
     reason = "the Python signature: keyword arguments with defaults"
@@ -146,6 +212,7 @@ fn identify_mrgia(
     sigma0: Option<f64>,
     c_init: Option<f64>,
     progress: Option<Py<PyAny>>,
+    decimate: usize,
 ) -> PyResult<String> {
     let settings = MrgiaSettings {
         recommended,
@@ -160,8 +227,11 @@ fn identify_mrgia(
     let (u, y) = (u.as_slice()?, y.as_slice()?);
     let mut bar = Progress::new(progress);
     let r = compute(py, || {
-        api::identify_mrgia(u, y, na, nb, delay, &settings, &mut |d, t| bar.report(d, t))
-            .map(|v| json_text(&v))
+        let [u, y] = api::decimated(u, y, decimate)?;
+        api::identify_mrgia(&u, &y, na, nb, delay, &settings, &mut |d, t| {
+            bar.report(d, t)
+        })
+        .map(|v| json_text(&v))
     });
     bar.finish(r)
 }
@@ -170,7 +240,7 @@ fn identify_mrgia(
 /// -> the JSON text of `identify oe`.
 #[pyfunction]
 #[pyo3(signature = (u, y, na=None, nb=None, delay=None, max_delay=10, single_start=false, max_iter=None,
-    crb_noise_std=None, target_rel=None))]
+    crb_noise_std=None, target_rel=None, progress=None, decimate=1))]
 #[expect(
     clippy::too_many_arguments,
     reason = "the Python signature: keyword arguments with defaults"
@@ -187,6 +257,8 @@ fn identify_oe(
     max_iter: Option<usize>,
     crb_noise_std: Option<f64>,
     target_rel: Option<f64>,
+    progress: Option<Py<PyAny>>,
+    decimate: usize,
 ) -> PyResult<String> {
     let opts = OeOptions {
         structure: structure(na, nb, delay)?,
@@ -196,11 +268,14 @@ fn identify_oe(
         crb_noise_std,
     };
     let (u, y) = (u.as_slice()?, y.as_slice()?);
-    compute(py, || {
-        api::identify_oe(u, y, &opts)?
+    let stages = Stages::new(progress);
+    let r = compute(py, || {
+        let [u, y] = api::decimated(u, y, decimate)?;
+        api::identify_oe_with_progress(&u, &y, &opts, &|s| stages.report(s))?
             .json(target_rel)
             .map(|v| json_text(&v))
-    })
+    });
+    stages.finish(r)
 }
 
 /// identify_frequency(time, u, y, omega, amplitude, degree, start, end, transient) -> the JSON text of
@@ -239,20 +314,20 @@ fn identify_frequency(
     })
 }
 
-/// crb(u, spec_json, noise_std, snr, target_rel, input) -> the JSON text of `backlash crb`.
+/// crb(u, truth, noise_std, snr, target_rel, input) -> the JSON text of `backlash crb`; `truth` a dict of
+/// the model's parameters by name.
 #[pyfunction]
-#[pyo3(signature = (u, spec_json, noise_std=None, snr=None, target_rel=None, input="array"))]
+#[pyo3(signature = (u, truth, noise_std=None, snr=None, target_rel=None, input="array"))]
 fn crb(
     py: Python<'_>,
     u: PyReadonlyArray1<'_, f64>,
-    spec_json: &str,
+    truth: &Bound<'_, PyDict>,
     noise_std: Option<f64>,
     snr: Option<f64>,
     target_rel: Option<f64>,
     input: &str,
 ) -> PyResult<String> {
-    let spec: PlantSpec = serde_json::from_str(spec_json)
-        .map_err(|e| PyValueError::new_err(format!("plant parameters: {e}")))?;
+    let spec = plant_spec(truth)?;
     let noise = match (noise_std, snr) {
         (Some(s), None) => CrbNoise::Std(s),
         (None, Some(r)) => CrbNoise::Snr(r),
@@ -270,11 +345,11 @@ fn crb(
     })
 }
 
-/// diagnose(u, y, na, nb, delay, ts, max_delay, fit_fraction, seed, max_effects, time_budget)
-/// -> the JSON text of `backlash diagnose` (without what belongs to a file).
+/// diagnose(u, y, na, nb, delay, ts, max_delay, fit_fraction, seed, max_effects, time_budget, decimate,
+/// progress) -> the JSON text of `backlash diagnose` (without what belongs to a file).
 #[pyfunction]
 #[pyo3(signature = (u, y, na=None, nb=None, delay=None, ts=None, max_delay=10, fit_fraction=0.7, seed=0,
-    max_effects=3, time_budget=300.0))]
+    max_effects=3, time_budget=300.0, decimate=1, progress=None))]
 #[expect(
     clippy::too_many_arguments,
     reason = "the Python signature: keyword arguments with defaults"
@@ -292,6 +367,8 @@ fn diagnose(
     seed: u64,
     max_effects: usize,
     time_budget: f64,
+    decimate: usize,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<String> {
     if let Some(t) = ts
         && !(t.is_finite() && t > 0.0)
@@ -300,18 +377,25 @@ fn diagnose(
             "the sample period ts = {t} must be a positive finite number of seconds"
         )));
     }
-    let opts = DiagnoseOptions {
-        structure: structure(na, nb, delay)?,
-        max_delay,
-        fit_fraction,
-        seed,
-        max_effects,
-        time_budget,
-    };
+    let structure = structure(na, nb, delay)?;
     let (u, y) = (u.as_slice()?, y.as_slice()?);
-    compute(py, || {
-        api::diagnose(u, y, &opts).map(|d| json_text(&api::diagnosis_json(&d, ts)))
-    })
+    let stages = Stages::new(progress);
+    let r = compute(py, || {
+        let cfg = DiagnoseConfig {
+            structure,
+            max_delay,
+            fit_fraction,
+            seed,
+            max_effects,
+            time_budget: api::time_budget(time_budget)?,
+            ..DiagnoseConfig::auto()
+        };
+        let [u, y] = api::decimated(u, y, decimate)?;
+        let d = api::diagnose_with_progress(&u, &y, &cfg, &|s| stages.report(s))?;
+        let ts = ts.map(|t| t * decimate as f64);
+        Ok(json_text(&api::diagnosis_json(&d, &u, ts, decimate)))
+    });
+    stages.finish(r)
 }
 
 /// run_cli(argv) -> exit status: the `backlash` program on a command line (its name first), with the GIL
@@ -324,6 +408,7 @@ fn run_cli(py: Python<'_>, argv: Vec<String>) -> PyResult<i32> {
 #[pymodule]
 fn _backlash(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(plant_parameters, m)?)?;
     m.add_function(wrap_pyfunction!(identify_mrgia, m)?)?;
     m.add_function(wrap_pyfunction!(identify_oe, m)?)?;
     m.add_function(wrap_pyfunction!(identify_frequency, m)?)?;

@@ -187,6 +187,11 @@ impl Bench {
 }
 
 impl PlantFmu {
+    /// The plant, once initialised: what `backlash::api::PlantSpec` simulates (the FMU's parameters by name).
+    pub fn plant(&self) -> Option<&Plant> {
+        self.plant.as_ref()
+    }
+
     /// Parameters in the plant's types, or the name of the one that is out of range.
     fn plant_params(&self) -> Result<PlantParams, String> {
         let mut p = self.params;

@@ -8,6 +8,10 @@
 //! [`RowReader`] checks a file row by row in memory independent of its length (one line buffer of at most
 //! [`MAX_LINE_BYTES`]); [`Table`] collects the same rows into columns. Both go through the one row checker,
 //! so a file that one accepts the other accepts, with the same numbers and the same messages.
+//!
+//! A header column may carry its unit in brackets, `y [kN]`: it answers to the name `y`, and the unit is
+//! kept for the plots ([`RowReader::units`], [`Table::unit`]). Which required column is the time that must
+//! increase is said by a [`TimeColumn`]: by default the one named `time` or `t`.
 
 use std::fs::File;
 use std::io::{BufRead, BufReader, BufWriter, Read, Write};
@@ -88,11 +92,13 @@ pub enum CsvError {
         column: String,
         text: String,
     },
-    #[error("{file}: line {line}, column '{column}': {value} is not a finite number")]
+    #[error("{file}: line {line}, column '{column}': {}", not_finite(.text, *.value))]
     NotFinite {
         file: PathBuf,
         line: usize,
         column: String,
+        /// The cell as the file holds it (shortened for long cells).
+        text: String,
         value: f64,
     },
     #[error(
@@ -107,6 +113,42 @@ pub enum CsvError {
     },
     #[error("{file}: the file has a header but no data rows")]
     NoRows { file: PathBuf },
+}
+
+/// Why the cell `text`, read as `value`, is refused: a number too large for a 64-bit float is told as such,
+/// with the text the file holds.
+fn not_finite(text: &str, value: f64) -> String {
+    let spelled = text.trim_start_matches(['+', '-']).to_ascii_lowercase();
+    if value.is_infinite() && !spelled.starts_with("inf") {
+        format!("'{text}' overflows a 64-bit float (the largest is about 1.8e308)")
+    } else {
+        format!("'{text}' is not a finite number")
+    }
+}
+
+/// Which required column is a time that must increase strictly.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TimeColumn<'a> {
+    /// The required column named `time` or `t`, if any (the default).
+    #[default]
+    ByName,
+    /// The required column of this name.
+    Named(&'a str),
+}
+
+/// A header cell split into its name and its unit: `y [kN]` is `("y", Some("kN"))`, `y` is `("y", None)`.
+pub fn split_unit(cell: &str) -> (&str, Option<&str>) {
+    let cell = cell.trim();
+    if let Some(body) = cell.strip_suffix(']')
+        && let Some(open) = body.rfind('[')
+    {
+        let name = body[..open].trim_end();
+        let unit = body[open + 1..].trim();
+        if !name.is_empty() && !unit.is_empty() {
+            return (name, Some(unit));
+        }
+    }
+    (cell, None)
 }
 
 /// `text` cut to [`QUOTE_CHARS`] characters for a message.
@@ -124,8 +166,10 @@ struct RowChecker {
     header: Vec<String>,
     /// Header position of each required column.
     idx: Vec<usize>,
-    /// Whether each required column is a time (`time` or `t`) that must increase strictly.
+    /// Whether each required column is a time that must increase strictly.
     is_time: Vec<bool>,
+    /// The unit each required column's header cell gives (`y [kN]`), if any.
+    units: Vec<Option<String>>,
     /// The previous row's values (meaningful once a row was accepted).
     prev: Vec<f64>,
     has_prev: bool,
@@ -135,7 +179,12 @@ struct RowChecker {
 
 impl RowChecker {
     /// Check the header line (already decoded, line end removed).
-    fn new(file: PathBuf, header: &str, required: &[&str]) -> Result<RowChecker, CsvError> {
+    fn new(
+        file: PathBuf,
+        header: &str,
+        required: &[&str],
+        time: TimeColumn,
+    ) -> Result<RowChecker, CsvError> {
         let header: Vec<String> = header
             .trim_start_matches('\u{feff}')
             .split(',')
@@ -154,7 +203,9 @@ impl RowChecker {
         }
         let mut idx = Vec::with_capacity(required.len());
         for &name in required {
-            match header.iter().position(|h| h == name) {
+            // The cell of that name, else the one whose name before a unit is it (`y [kN]` for y).
+            let exact = header.iter().position(|h| h == name);
+            match exact.or_else(|| header.iter().position(|h| split_unit(h).0 == name)) {
                 Some(i) => idx.push(i),
                 None => {
                     return Err(CsvError::MissingColumn {
@@ -165,12 +216,24 @@ impl RowChecker {
                 }
             }
         }
+        let is_time = required
+            .iter()
+            .map(|n| match time {
+                TimeColumn::ByName => *n == "time" || *n == "t",
+                TimeColumn::Named(t) => *n == t,
+            })
+            .collect();
+        let units = idx
+            .iter()
+            .map(|&i| split_unit(&header[i]).1.map(str::to_string))
+            .collect();
         Ok(RowChecker {
             file,
             spans: Vec::with_capacity(header.len() + 1),
             header,
             idx,
-            is_time: required.iter().map(|n| *n == "time" || *n == "t").collect(),
+            is_time,
+            units,
             prev: vec![0.0; required.len()],
             has_prev: false,
         })
@@ -228,6 +291,7 @@ impl RowChecker {
                     file: self.file.clone(),
                     line: line_no,
                     column: self.header[i].clone(),
+                    text: quote(text),
                     value: v,
                 });
             }
@@ -276,14 +340,20 @@ pub struct RowReader<R> {
 impl RowReader<BufReader<File>> {
     /// Open `path` and check its header; `required` as for [`RowReader::new`].
     pub fn open(path: &Path, required: &[&str]) -> Result<Self, CsvError> {
+        Self::open_with(path, required, TimeColumn::ByName)
+    }
+
+    /// [`RowReader::open`] with the time column named by `time`.
+    pub fn open_with(path: &Path, required: &[&str], time: TimeColumn) -> Result<Self, CsvError> {
         let f = File::open(path).map_err(|source| CsvError::Io {
             file: path.to_path_buf(),
             source,
         })?;
-        Self::new(
+        Self::new_with(
             BufReader::with_capacity(READ_BUFFER_BYTES, f),
             path,
             required,
+            time,
         )
     }
 }
@@ -293,6 +363,16 @@ impl<R: BufRead> RowReader<R> {
     /// have them in any order, and other columns, which are checked for shape only). A required column named
     /// `time` or `t` must increase strictly. `file` is only used in messages.
     pub fn new(reader: R, file: &Path, required: &[&str]) -> Result<Self, CsvError> {
+        Self::new_with(reader, file, required, TimeColumn::ByName)
+    }
+
+    /// [`RowReader::new`] with the time column named by `time`.
+    pub fn new_with(
+        reader: R,
+        file: &Path,
+        required: &[&str],
+        time: TimeColumn,
+    ) -> Result<Self, CsvError> {
         let mut r = RowReader {
             reader,
             // Replaced by the header's checker below.
@@ -313,7 +393,7 @@ impl<R: BufRead> RowReader<R> {
             });
         }
         let header = decode(&r.buf, file, r.line)?;
-        r.checker = RowChecker::new(file.to_path_buf(), header, required)?;
+        r.checker = RowChecker::new(file.to_path_buf(), header, required, time)?;
         Ok(r)
     }
 
@@ -344,6 +424,12 @@ impl<R: BufRead> RowReader<R> {
     /// The header's column names (trimmed, without a byte-order mark).
     pub fn header(&self) -> &[String] {
         &self.checker.header
+    }
+
+    /// The unit of each required column, in the order asked for, where its header cell gives one
+    /// (`y [kN]`).
+    pub fn units(&self) -> &[Option<String>] {
+        &self.checker.units
     }
 
     /// Number of the line read last (1-based; the header is line 1).
@@ -548,6 +634,7 @@ fn decode<'a>(bytes: &'a [u8], file: &Path, line: usize) -> Result<&'a str, CsvE
 #[derive(Debug, Clone, PartialEq)]
 pub struct Table {
     names: Vec<String>,
+    units: Vec<Option<String>>,
     columns: Vec<Vec<f64>>,
 }
 
@@ -556,6 +643,11 @@ impl Table {
     /// A column named `time` or `t`, if required, must increase strictly.
     pub fn read(path: &Path, required: &[&str]) -> Result<Table, CsvError> {
         Self::collect(RowReader::open(path, required)?, required)
+    }
+
+    /// [`Table::read`] with the time column named by `time`.
+    pub fn read_with(path: &Path, required: &[&str], time: TimeColumn) -> Result<Table, CsvError> {
+        Self::collect(RowReader::open_with(path, required, time)?, required)
     }
 
     /// Parse from any reader; `file` is only used in messages.
@@ -572,8 +664,15 @@ impl Table {
         }
         Ok(Table {
             names: required.iter().map(|s| s.to_string()).collect(),
+            units: rows.units().to_vec(),
             columns,
         })
+    }
+
+    /// The unit a required column's header cell gives (`y [kN]`), if any.
+    pub fn unit(&self, name: &str) -> Option<&str> {
+        let i = self.names.iter().position(|n| n == name)?;
+        self.units[i].as_deref()
     }
 
     /// A required column by name.
@@ -704,7 +803,15 @@ mod tests {
         );
         assert_eq!(
             msg("time,u,y\n0,1,NaN\n"),
-            "data.csv: line 2, column 'y': NaN is not a finite number"
+            "data.csv: line 2, column 'y': 'NaN' is not a finite number"
+        );
+        assert_eq!(
+            msg("time,u,y\n0,1,-inf\n"),
+            "data.csv: line 2, column 'y': '-inf' is not a finite number"
+        );
+        assert_eq!(
+            msg("time,u,y\n0,1e400,1\n"),
+            "data.csv: line 2, column 'u': '1e400' overflows a 64-bit float (the largest is about 1.8e308)"
         );
         assert_eq!(
             msg("time,u,y\n0,1,2\n0,1,2\n"),
@@ -731,6 +838,47 @@ mod tests {
             msg("time,u,y,note\n0,1,2\n"),
             "data.csv: line 2, column 4 ('note'): missing: 3 fields, the header has 4"
         );
+    }
+
+    #[test]
+    fn units_in_the_header_and_a_named_time_column() {
+        let text = "t [s],u [V],y [kN],time\n0,1,2,5\n1,3,4,4\n";
+        let t = Table::parse(text.as_bytes(), Path::new("d.csv"), &["y", "u"]).unwrap();
+        assert_eq!(t.column("y").unwrap(), &[2.0, 4.0]);
+        assert_eq!((t.unit("y"), t.unit("u")), (Some("kN"), Some("V")));
+        // `time` decreases, but it is not the time column here: `t` is, and it increases.
+        let r = RowReader::new_with(
+            text.as_bytes(),
+            Path::new("d.csv"),
+            &["t", "u", "time"],
+            TimeColumn::Named("t"),
+        )
+        .unwrap();
+        assert_eq!(
+            r.units(),
+            [Some("s".to_string()), Some("V".to_string()), None]
+        );
+        let t = Table::collect(r, &["t", "u", "time"]).unwrap();
+        assert_eq!(t.column("time").unwrap(), &[5.0, 4.0]);
+        // Named the other way, the decreasing column is refused.
+        let e = Table::collect(
+            RowReader::new_with(
+                text.as_bytes(),
+                Path::new("d.csv"),
+                &["time"],
+                TimeColumn::Named("time"),
+            )
+            .unwrap(),
+            &["time"],
+        )
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "d.csv: line 3, column 'time': time 4 does not increase (previous 5)"
+        );
+        assert_eq!(split_unit(" y [ kN ] "), ("y", Some("kN")));
+        assert_eq!(split_unit("[kN]"), ("[kN]", None));
+        assert_eq!(split_unit("y"), ("y", None));
     }
 
     #[test]

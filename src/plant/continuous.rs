@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 use super::{ParamError, check_finite, check_positive};
 
 /// Highest denominator degree.
-pub const MAX_ORDER: usize = 4;
+pub const MAX_DEGREE: usize = 4;
 
 /// A rational transfer function, coefficients in descending powers of `s`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -79,7 +79,7 @@ impl TransferFunction {
 
     /// Coefficients finite, degrees in range, leading denominator coefficient non-zero, stable.
     pub fn validate(&self) -> Result<(), ParamError> {
-        if self.den.is_empty() || self.den.len() > MAX_ORDER + 1 {
+        if self.den.is_empty() || self.den.len() > MAX_DEGREE + 1 {
             return Err(ParamError::new(
                 "den",
                 self.den.len() as f64,
@@ -200,11 +200,11 @@ pub struct ContinuousLinear {
     tf: TransferFunction,
     ts: f64,
     n: usize,
-    phi: [[f64; MAX_ORDER]; MAX_ORDER],
-    gamma: [f64; MAX_ORDER],
-    c: [f64; MAX_ORDER],
+    phi: [[f64; MAX_DEGREE]; MAX_DEGREE],
+    gamma: [f64; MAX_DEGREE],
+    c: [f64; MAX_DEGREE],
     d: f64,
-    z: [f64; MAX_ORDER],
+    z: [f64; MAX_DEGREE],
 }
 
 impl ContinuousLinear {
@@ -218,11 +218,11 @@ impl ContinuousLinear {
             tf,
             ts,
             n,
-            phi: [[0.0; MAX_ORDER]; MAX_ORDER],
-            gamma: [0.0; MAX_ORDER],
-            c: [0.0; MAX_ORDER],
+            phi: [[0.0; MAX_DEGREE]; MAX_DEGREE],
+            gamma: [0.0; MAX_DEGREE],
+            c: [0.0; MAX_DEGREE],
             d: q[0],
-            z: [0.0; MAX_ORDER],
+            z: [0.0; MAX_DEGREE],
         };
         if n == 0 {
             return Ok(blk);
@@ -290,7 +290,7 @@ impl ContinuousLinear {
     /// Hold `u` over one period: move the state to the next sample.
     pub fn advance(&mut self, u: f64) {
         let n = self.n;
-        let mut next = [0.0; MAX_ORDER];
+        let mut next = [0.0; MAX_DEGREE];
         for (i, nx) in next.iter_mut().enumerate().take(n) {
             *nx = self.phi[i][..n]
                 .iter()
@@ -311,7 +311,7 @@ impl ContinuousLinear {
 
     /// Back to the zero state.
     pub fn reset(&mut self) {
-        self.z = [0.0; MAX_ORDER];
+        self.z = [0.0; MAX_DEGREE];
     }
 
     /// Frequency response of the sampled block, `C (e^(j w Ts) I - Phi)^(-1) Gamma + D0`: what a sampled

@@ -98,17 +98,54 @@ def test_diagnose_names_the_effect_the_declared_model_lacks_as_the_program_does(
     _same(api, program, ignore=("file",))
 
 
-def test_simulate_equals_the_packaged_plant_fmu_in_fmpy():
+@pytest.mark.parametrize("bench", [{}, dict(Ts=0.5, c1_rate=0.002, noise_phi=0.6, quant_step=0.05)])
+def test_simulate_equals_the_packaged_plant_fmu_in_fmpy(bench):
+    """By the FMU's names, the test bench's effects included: every parameter the FMU has."""
     fmu = backlash_fmu.fmu_path("BacklashPlant")
     assert validate_fmu(fmu) == []
     u = cosim.paper_input(500, 4)
-    params = dict(c1=0.3, c2=0.7, m2=1.2, noise_std=0.01, noise_seed=9)
+    assert {"a", "b", "Ts", "c1_rate", "noise_phi", "quant_step", "b4_fall"} <= set(backlash_fmu.PLANT_PARAMETERS)
+    params = dict(c1=0.3, c2=0.7, m2=1.2, noise_std=0.01, noise_seed=9, **bench)
+    ts = bench.get("Ts", 1.0)
     api = backlash_fmu.simulate(u, a=[0.45, 0.55], b=[0.8], **params)
-    inp = np.array(list(zip(np.arange(500.0), u)), dtype=[("time", float), ("u", float)])
-    res = simulate_fmu(fmu, stop_time=499, output_interval=1, input=inp, start_values=params,
+    inp = np.array(list(zip(ts * np.arange(500.0), u)), dtype=[("time", float), ("u", float)])
+    res = simulate_fmu(fmu, stop_time=499 * ts, output_interval=ts, input=inp, start_values=params,
                        output=["x", "w", "y"])
     for name in ("x", "w", "y"):
         np.testing.assert_allclose(res[name], api[name], rtol=0, atol=1e-12, err_msg=name)
+
+
+def test_record_options_units_decimate_and_progress_equal_the_program(cli, tmp_path):
+    """A file named as a measured record is (`t [s],u [V],y [kN]`): the program reads it with --time-col and
+    --decimate as the API reads the arrays with decimate=; diagnose reports its stages."""
+    u, y = _record(3000, 3, noise_std=0.02)
+    data = tmp_path / "damper.csv"
+    with open(data, "w") as f:
+        f.write("t [s],u [V],y [kN]\n")
+        for k, (a, b) in enumerate(zip(u.tolist(), y.tolist())):
+            f.write(f"{0.01 * k!r},{a!r},{b!r}\n")
+    stages = []
+    program = _cli_json(cli, "diagnose", data, "--time-col", "t", "--decimate", 2, "--na", 2, "--nb", 0,
+                        "--delay", 1, "--max-effects", 1, "--time-budget", 60)
+    # The program's Ts is the median step of the decimated time column (0.02 within rounding).
+    api = backlash_fmu.diagnose(u, y, **PAPER, ts=program["Ts"] / 2, max_effects=1, time_budget=60, decimate=2,
+                                progress=stages.append)
+    _same(api, program)
+    assert api["decimate"] == 2 and abs(program["Ts"] - 0.02) < 1e-12
+    assert stages[0] == "choosing the initial state" and all(isinstance(s, str) for s in stages)
+    oe = _cli_json(cli, "identify", "oe", data, "--na", 2, "--nb", 0, "--delay", 1)
+    _same(backlash_fmu.identify_oe(u, y, **PAPER), oe)
+    assert oe["warnings"] == []
+
+
+def test_warnings_and_the_missing_sample_period_are_told():
+    u = np.full(400, 0.7)
+    y = backlash_fmu.simulate(u, noise_std=0.01)["y"]
+    out = backlash_fmu.identify_mrgia(u, y, 2, 0, 1)
+    assert out["warnings"][0].startswith("the input is constant (0.7 in every sample)"), out["warnings"]
+    u, y = _record(1500, 3, noise_std=0.02)
+    out = backlash_fmu.diagnose(u, y, **PAPER, max_effects=1, time_budget=60)
+    assert out["Ts"] is None and "c1_rate_per_s" in out["Ts_note"]
 
 
 def test_packaged_estimator_fmu_in_a_pair_equals_identify_mrgia():
@@ -150,8 +187,13 @@ def test_fmu_path_names_what_it_has():
     (lambda u, y: backlash_fmu.identify_mrgia(u, y, 7, 0, 1), r"na.*7.*between 0 and 4"),
     (lambda u, y: backlash_fmu.identify_oe(u, y, na=2), r"give all three of na, nb and delay"),
     (lambda u, y: backlash_fmu.simulate(np.column_stack([u, u])), r"u must be one-dimensional"),
-    (lambda u, y: backlash_fmu.simulate(u, c3=1.0), r"unknown field `c3`"),
-    (lambda u, y: backlash_fmu.simulate(u, a=[0.1] * 5), r"a has 5 coefficients; at most 4"),
+    (lambda u, y: backlash_fmu.simulate(u, c3=1.0), r"^the plant has no parameter named c3 \(did you mean \w+\?\); "
+                                                     r"its parameters are the plant FMU's: a, b, Ts, "),
+    (lambda u, y: backlash_fmu.simulate(u, c1_rat=1.0), r"no parameter named c1_rat \(did you mean c1_rate\?\)"),
+    (lambda u, y: backlash_fmu.simulate(u, delay=1.5), r"delay = 1.5 must be a whole number"),
+    (lambda u, y: backlash_fmu.simulate(u, a=[0.1] * 5), r"a has 5 coefficients; 0 to 4 \(a1 to a4\)"),
+    (lambda u, y: backlash_fmu.crb(u, snr=43.0, c1_rate=0.1), r"c1_rate is not one of its parameters"),
+    (lambda u, y: backlash_fmu.diagnose(u, y, decimate=0), r"decimate must be at least 1"),
     (lambda u, y: backlash_fmu.crb(u), r"give one of noise_std and snr"),
     (lambda u, y: backlash_fmu.diagnose(u, y, time_budget=0), r"time budget 0 must be"),
 ])

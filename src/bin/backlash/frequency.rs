@@ -1,43 +1,27 @@
-//! Paper 003 on the command line: `identify frequency` (one sine experiment from a CSV file),
-//! `identify stepped-sine` (every step of a stepped-sine record) and `experiment` (a simulated plant
-//! identified at several frequencies). Parsing, the library's calls, printing and plots only: the science
-//! is in `backlash::identify::frequency`.
+//! Paper 003 on the command line: `identify frequency` (one sine experiment from a CSV file) and `identify
+//! stepped-sine` (every step of a stepped-sine record), with the plots and files `experiment` shares.
+//! Parsing, the library's calls, printing and plots only: the science is in `backlash::identify::frequency`.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
+
+use super::common::{RecordArgs, spinner};
 
 use backlash::api::{ApiError, FREQUENCY_CONVENTION, frequency_json, identify_frequency};
 use backlash::identify::frequency::analysis::{
     Analysis, AnalysisOptions, BodePoint, SteppedAnalysis, analyse_steps,
 };
-use backlash::identify::frequency::experiment::{
-    ExperimentPlant, Matched, ModelView, Record, SineDesign, SineRow, SteppedDesign, SteppedResult,
-    SteppedRow, bode_curve, design_degree, run_sines, run_stepped,
-};
+use backlash::identify::frequency::experiment::Record;
 use backlash::identify::frequency::{EstimatorPath, FrequencyError, FrequencyEstimate, SineRecord};
-use backlash::io::{RowReader, Table, write_atomic};
+use backlash::io::write_atomic;
 use backlash::plant::poly::poly_eval;
 use backlash::report::plot::{Axes, Panel, Series, grid_plot, line_plot};
 
 /// What a frequency estimate means (printed with every result).
-const CONVENTION: &str = FREQUENCY_CONVENTION;
-
-/// Columns of a sine record.
-#[derive(clap::Args, Debug, Clone)]
-pub struct Columns {
-    /// Name of the time column [default: time, or t when the file has no time column]
-    #[arg(long)]
-    pub time_col: Option<String>,
-    /// Name of the input column
-    #[arg(long, default_value = "u")]
-    pub u_col: String,
-    /// Name of the output column
-    #[arg(long, default_value = "y")]
-    pub y_col: String,
-}
+pub(super) const CONVENTION: &str = FREQUENCY_CONVENTION;
 
 /// Identify one sine experiment (paper 003): the steady window, the degree, the phase lag, gain and
 /// polynomial borders, and whether the model explains the record.
@@ -65,7 +49,7 @@ pub struct IdentifyFrequencyArgs {
     #[arg(long)]
     pub transient: Option<f64>,
     #[command(flatten)]
-    pub columns: Columns,
+    pub record: RecordArgs,
     /// Print one JSON object on stdout and nothing else
     #[arg(long)]
     pub json: bool,
@@ -84,7 +68,7 @@ pub struct SteppedSineArgs {
     #[arg(long)]
     pub transient: Option<f64>,
     #[command(flatten)]
-    pub columns: Columns,
+    pub record: RecordArgs,
     /// Output folder (created): bode.csv, bode_magnitude.png, bode_phase.png, borders.png, steps.png
     #[arg(long, default_value = "stepped-sine")]
     pub out: PathBuf,
@@ -93,48 +77,9 @@ pub struct SteppedSineArgs {
     pub json: bool,
 }
 
-/// The time column: the one named, else `time`, else `t` when the file has `t` and no `time`.
-fn time_column(file: &Path, columns: &Columns) -> Result<String> {
-    if let Some(c) = &columns.time_col {
-        return Ok(c.clone());
-    }
-    let reader = RowReader::open(file, &[])?;
-    let header = reader.header();
-    let has = |n: &str| header.iter().any(|h| h == n);
-    Ok(if !has("time") && has("t") {
-        "t"
-    } else {
-        "time"
-    }
-    .to_string())
-}
-
-/// The columns time, u, y of a file.
-fn read_record(file: &Path, columns: &Columns) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>)> {
-    let time = time_column(file, columns)?;
-    let names = [
-        time.as_str(),
-        columns.u_col.as_str(),
-        columns.y_col.as_str(),
-    ];
-    let table = Table::read(file, &names)?;
-    let col = |name: &str| {
-        table
-            .column(name)
-            .map(<[f64]>::to_vec)
-            .with_context(|| format!("{}: no column '{name}'", file.display()))
-    };
-    Ok((col(names[0])?, col(names[1])?, col(names[2])?))
-}
-
 /// `backlash identify frequency FILE [--omega W] [--amplitude U] [--degree n] [--json]`.
 pub fn run_identify(args: &IdentifyFrequencyArgs) -> Result<()> {
-    let (time, u, y) = read_record(&args.file, &args.columns)?;
-    let rec = SineRecord {
-        time: &time,
-        u: Some(&u),
-        y: &y,
-    };
+    let rec = args.record.options().read(&args.file, true)?;
     let opts = AnalysisOptions {
         omega: args.omega,
         amplitude: args.amplitude,
@@ -144,7 +89,10 @@ pub fn run_identify(args: &IdentifyFrequencyArgs) -> Result<()> {
         transient: args.transient,
     };
     let file = args.file.display();
-    let analysis = identify_frequency(rec.time, rec.u, rec.y, &opts).map_err(|e| match e {
+    let progress = spinner(args.json, "identifying the sine experiment (paper 003)");
+    let analysis = identify_frequency(&rec.t, Some(rec.u.as_slice()), &rec.y, &opts);
+    progress.finish_and_clear();
+    let analysis = analysis.map_err(|e| match e {
         ApiError::Frequency(e @ FrequencyError::SeveralSteps { .. }) => anyhow::anyhow!(
             "{file}: {e}: `backlash identify stepped-sine {file}` identifies them all, `--omega W` picks one"
         ),
@@ -160,7 +108,7 @@ pub fn run_identify(args: &IdentifyFrequencyArgs) -> Result<()> {
 }
 
 /// Write to stdout; a closed pipe (`| head`) is not an error.
-fn emit(text: &str) -> Result<()> {
+pub(super) fn emit(text: &str) -> Result<()> {
     use std::io::Write;
     let mut out = std::io::stdout().lock();
     match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
@@ -169,7 +117,7 @@ fn emit(text: &str) -> Result<()> {
     }
 }
 
-fn poly_text(name: &str, c: &[f64]) -> String {
+pub(super) fn poly_text(name: &str, c: &[f64]) -> String {
     let mut s = format!("{name}(x) = {:.6}", c[0]);
     for (i, v) in c.iter().enumerate().skip(1) {
         let sign = if *v < 0.0 { '-' } else { '+' };
@@ -287,15 +235,19 @@ const BODE_CONVENTION: &str = "bode: steps by increasing omega, each as the memb
 
 /// `backlash identify stepped-sine FILE [--out DIR] [--json]`.
 pub fn run_stepped_sine(args: &SteppedSineArgs) -> Result<()> {
-    let (time, u, y) = read_record(&args.file, &args.columns)?;
+    let record = args.record.options().read(&args.file, true)?;
+    let (time, u) = (record.t.as_slice(), record.u.as_slice());
     let rec = SineRecord {
-        time: &time,
-        u: Some(&u),
-        y: &y,
+        time,
+        u: Some(u),
+        y: &record.y,
     };
     let file = args.file.display();
-    let analysis = analyse_steps(&rec, args.degree, args.transient)
-        .with_context(|| format!("{file}: stepped-sine identification failed"))?;
+    let progress = spinner(args.json, "identifying every step (paper 003)");
+    let analysis = analyse_steps(&rec, args.degree, args.transient);
+    progress.finish_and_clear();
+    let analysis =
+        analysis.with_context(|| format!("{file}: stepped-sine identification failed"))?;
     create_dir(&args.out)?;
     let csv = args.out.join("bode.csv");
     write_bode_csv(&csv, &analysis.bode)?;
@@ -305,7 +257,8 @@ pub fn run_stepped_sine(args: &SteppedSineArgs) -> Result<()> {
         &[("estimated (paper 003)", &analysis.bode)],
     )?;
     plots.extend(border_panels(&args.out, &analysis.bode, None)?);
-    plots.push(steps_plot(&args.out, &time, &u, &analysis)?);
+    let labels = [record.label(0), record.label(1)];
+    plots.push(steps_plot(&args.out, time, u, labels, &analysis)?);
     let out = SteppedJson {
         method: "stepped-sine",
         file: file.to_string(),
@@ -395,12 +348,12 @@ fn describe_stepped(out: &SteppedJson) -> String {
     s
 }
 
-fn create_dir(dir: &Path) -> Result<()> {
+pub(super) fn create_dir(dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir)
         .with_context(|| format!("{}: cannot create the folder", dir.display()))
 }
 
-fn write_bode_csv(path: &Path, points: &[BodePoint]) -> Result<()> {
+pub(super) fn write_bode_csv(path: &Path, points: &[BodePoint]) -> Result<()> {
     write_atomic(path, |f| {
         writeln!(f, "omega,gain,phase")?;
         for p in points {
@@ -411,7 +364,7 @@ fn write_bode_csv(path: &Path, points: &[BodePoint]) -> Result<()> {
     .with_context(|| format!("{}: cannot write", path.display()))
 }
 
-fn write_record(path: &Path, r: &Record) -> Result<()> {
+pub(super) fn write_record(path: &Path, r: &Record) -> Result<()> {
     write_atomic(path, |f| {
         writeln!(f, "time,u,x,w,y")?;
         for i in 0..r.t.len() {
@@ -423,13 +376,13 @@ fn write_record(path: &Path, r: &Record) -> Result<()> {
 }
 
 /// A true Bode curve: (omega, |G|/K, phase lag rad).
-type Curve = Vec<(f64, f64, f64)>;
+pub(super) type Curve = Vec<(f64, f64, f64)>;
 
 /// True borders of a Bode point and the x range its data excite: (f_a, f_d, U |G|/K).
-type TrueBorders = (Vec<f64>, Vec<f64>, f64);
+pub(super) type TrueBorders = (Vec<f64>, Vec<f64>, f64);
 
 /// bode_magnitude.png and bode_phase.png: the truth (if known) and sets of estimated points.
-fn bode_plots(
+pub(super) fn bode_plots(
     dir: &Path,
     truth: Option<&Curve>,
     estimates: &[(&str, &[BodePoint])],
@@ -496,7 +449,7 @@ fn bode_plots(
 
 /// borders.png: one panel per point, the estimate over its excited range and the truth (if known) a
 /// little beyond.
-fn border_panels(
+pub(super) fn border_panels(
     dir: &Path,
     points: &[BodePoint],
     truth: Option<&[TrueBorders]>,
@@ -549,7 +502,14 @@ fn border_panels(
 }
 
 /// steps.png: the input with each step's window.
-fn steps_plot(dir: &Path, t: &[f64], u: &[f64], a: &SteppedAnalysis) -> Result<String> {
+/// steps.png: the input against time with the windows used; `labels` name the time and input axes.
+pub(super) fn steps_plot(
+    dir: &Path,
+    t: &[f64],
+    u: &[f64],
+    labels: [&str; 2],
+    a: &SteppedAnalysis,
+) -> Result<String> {
     let stride = (t.len() / 20_000).max(1);
     let input: Vec<(f64, f64)> = t
         .iter()
@@ -567,429 +527,17 @@ fn steps_plot(dir: &Path, t: &[f64], u: &[f64], a: &SteppedAnalysis) -> Result<S
     }
     let marks: Vec<(f64, f64)> = marks.into_iter().filter(|p| p.0.is_finite()).collect();
     let path = dir.join("steps.png");
-    let mut series = vec![Series::line("u", input)];
+    let mut series = vec![Series::line(labels[1], input)];
     for (i, pair) in marks.chunks(2).enumerate() {
         series.push(Series::line(if i == 0 { "window used" } else { "" }, pair.to_vec()).color(3));
     }
     line_plot(
         &path,
         "Stepped-sine record: the input and the windows used",
-        "time (s)",
-        "u",
+        labels[0],
+        labels[1],
         &series,
         Axes::LINEAR,
     )?;
     Ok(path.display().to_string())
-}
-
-/// Simulate a Wiener plant (continuous G(s) + polynomial-border backlash) under sine inputs, identify
-/// each experiment (paper 003) and plot the estimates against the truth.
-#[derive(clap::Args, Debug, Clone)]
-pub struct ExperimentArgs {
-    /// Frequencies, rad/s, comma-separated
-    #[arg(long, value_delimiter = ',', default_value = "0.2,0.5,1,2")]
-    pub omegas: Vec<f64>,
-    /// JSON file with any of: num, den (descending powers of s), fa, fd (lowest power first), amplitude,
-    /// noise_std, seed; flags override it
-    #[arg(long)]
-    pub plant: Option<PathBuf>,
-    /// Numerator of G(s), descending powers [default: 1]
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub num: Option<Vec<f64>>,
-    /// Denominator of G(s), descending powers, stable, degree at most 4 [default: 1,0.6,1]
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub den: Option<Vec<f64>>,
-    /// Ascending border a0,a1,.. (degree at most 3) [default: -0.25,0.9,0.1,0.05]
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub fa: Option<Vec<f64>>,
-    /// Descending border d0,d1,.. (degree at most 3) [default: 0.3,0.85,0.1,0.05]
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub fd: Option<Vec<f64>>,
-    /// Sine amplitude U [default: 3]
-    #[arg(long)]
-    pub amplitude: Option<f64>,
-    /// Degree used by the estimator [default: the borders' degree; with --stepped, chosen by the data]
-    #[arg(long)]
-    pub degree: Option<usize>,
-    /// Standard deviation of the white output noise [default: 0.01]
-    #[arg(long)]
-    pub noise_std: Option<f64>,
-    /// Noise seed [default: 1]
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Steady periods recorded per frequency (with --stepped: held periods per step)
-    #[arg(long, default_value_t = 40)]
-    pub periods: usize,
-    /// Samples per period (Ts = 2 pi / (omega * this)); not with --stepped
-    #[arg(long, default_value_t = 200)]
-    pub samples_per_period: usize,
-    /// Extra periods at the start for the transient [default: enough for e^-25 decay of the slowest pole]
-    #[arg(long)]
-    pub transient_periods: Option<usize>,
-    /// One stepped-sine record through all the frequencies (ramped in and out), identified by
-    /// `identify stepped-sine`, against single-frequency records of the same length
-    #[arg(long)]
-    pub stepped: bool,
-    /// With --stepped: the common sample period, s
-    #[arg(long, default_value_t = 0.02)]
-    pub ts: f64,
-    /// With --stepped: periods of each ramp in and out
-    #[arg(long, default_value_t = 2)]
-    pub ramp_periods: usize,
-    /// With --stepped: rest between steps, s
-    #[arg(long, default_value_t = 5.0)]
-    pub pause: f64,
-    /// Output folder (created): frequency.json, bode_magnitude.png, bode_phase.png, borders.png, records
-    #[arg(long, default_value = "frequency-experiment")]
-    pub out: PathBuf,
-    /// Print the result table as one JSON object on stdout and nothing else
-    #[arg(long)]
-    pub json: bool,
-}
-
-/// Plant and excitation of an experiment (the `--plant` file's format; every field optional there).
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PlantSpec {
-    pub num: Option<Vec<f64>>,
-    pub den: Option<Vec<f64>>,
-    pub fa: Option<Vec<f64>>,
-    pub fd: Option<Vec<f64>>,
-    pub amplitude: Option<f64>,
-    pub noise_std: Option<f64>,
-    pub seed: Option<u64>,
-}
-
-/// Flags over the `--plant` file over the defaults.
-fn resolve(args: &ExperimentArgs) -> Result<ExperimentPlant> {
-    let spec: PlantSpec = match &args.plant {
-        Some(p) => {
-            let text = std::fs::read_to_string(p)
-                .with_context(|| format!("{}: cannot read", p.display()))?;
-            serde_json::from_str(&text)
-                .with_context(|| format!("{}: not a valid plant description", p.display()))?
-        }
-        None => PlantSpec::default(),
-    };
-    let d = ExperimentPlant::default();
-    let pick = |flag: &Option<Vec<f64>>, file: &Option<Vec<f64>>, default: Vec<f64>| {
-        flag.clone().or_else(|| file.clone()).unwrap_or(default)
-    };
-    Ok(ExperimentPlant {
-        num: pick(&args.num, &spec.num, d.num),
-        den: pick(&args.den, &spec.den, d.den),
-        fa: pick(&args.fa, &spec.fa, d.fa),
-        fd: pick(&args.fd, &spec.fd, d.fd),
-        amplitude: args.amplitude.or(spec.amplitude).unwrap_or(d.amplitude),
-        noise_std: args.noise_std.or(spec.noise_std).unwrap_or(d.noise_std),
-        seed: args.seed.or(spec.seed).unwrap_or(d.seed),
-    })
-}
-
-#[derive(Serialize)]
-struct ExperimentJson<'a> {
-    method: &'static str,
-    plant: &'a ExperimentPlant,
-    degree: usize,
-    periods: usize,
-    samples_per_period: usize,
-    convention: &'static str,
-    truth_note: &'static str,
-    rows: Vec<RowJson<'a>>,
-    plots: Vec<String>,
-}
-
-#[derive(Serialize)]
-struct RowJson<'a> {
-    #[serde(flatten)]
-    row: &'a SineRow,
-    data: String,
-}
-
-const TRUTH_NOTE: &str = "truth = the zero-order-hold frequency response of the sampled block (what the samples \
-     carry); gain_continuous/phase_continuous = G(jw) for reference";
-
-/// `backlash experiment ...`: simulate, identify at every frequency, plot, write the table.
-pub fn run_experiment(args: &ExperimentArgs) -> Result<()> {
-    let plant = resolve(args)?;
-    if args.stepped {
-        return run_stepped_experiment(args, &plant);
-    }
-    let design = SineDesign {
-        omegas: args.omegas.clone(),
-        degree: args.degree,
-        periods: args.periods,
-        samples_per_period: args.samples_per_period,
-        transient_periods: args.transient_periods,
-    };
-    let rows = run_sines(&plant, &design)?;
-    let degree = design_degree(&plant, args.degree)?;
-    create_dir(&args.out)?;
-    let mut data = Vec::new();
-    for r in &rows {
-        let path = args.out.join(format!("sine_w{}.csv", r.omega));
-        write_record(&path, &r.record)?;
-        data.push(path.display().to_string());
-    }
-    let points: Vec<BodePoint> = rows
-        .iter()
-        .filter_map(|r| {
-            let m = r.matched.as_ref()?;
-            Some(point(r.omega, &m.as_model, plant.amplitude))
-        })
-        .collect();
-    let (lo, hi) = span(&args.omegas);
-    let curve = bode_curve(&plant, degree, lo, hi, 300)?;
-    let mut plots = bode_plots(
-        &args.out,
-        Some(&curve),
-        &[("estimated (paper 003)", &points)],
-    )?;
-    let truths: Vec<TrueBorders> = rows
-        .iter()
-        .filter(|r| r.matched.is_some())
-        .map(|r| {
-            (
-                r.truth.fa.clone(),
-                r.truth.fd.clone(),
-                plant.amplitude * r.truth.gain,
-            )
-        })
-        .collect();
-    plots.extend(border_panels(&args.out, &points, Some(&truths))?);
-    let out = ExperimentJson {
-        method: "frequency-experiment",
-        plant: &plant,
-        degree,
-        periods: args.periods,
-        samples_per_period: args.samples_per_period,
-        convention: CONVENTION,
-        truth_note: TRUTH_NOTE,
-        rows: rows
-            .iter()
-            .zip(data)
-            .map(|(row, data)| RowJson { row, data })
-            .collect(),
-        plots,
-    };
-    let json = serde_json::to_string_pretty(&out)?;
-    let table_path = args.out.join("frequency.json");
-    write_atomic(&table_path, |f| writeln!(f, "{json}"))
-        .with_context(|| format!("{}: cannot write", table_path.display()))?;
-    if args.json {
-        emit(&format!("{}\n", serde_json::to_string(&out)?))
-    } else {
-        emit(&summary(&out, &table_path))
-    }
-}
-
-fn span(omegas: &[f64]) -> (f64, f64) {
-    let lo = omegas.iter().copied().fold(f64::INFINITY, f64::min) / 2.0;
-    let hi = omegas.iter().copied().fold(0.0, f64::max) * 2.0;
-    (lo, hi)
-}
-
-fn point(omega: f64, m: &ModelView, amplitude: f64) -> BodePoint {
-    BodePoint {
-        omega,
-        gain: m.gain,
-        phase: m.phase,
-        member: "model".to_string(),
-        fa: m.fa.clone(),
-        fd: m.fd.clone(),
-        explained: true,
-        amplitude,
-    }
-}
-
-fn summary(out: &ExperimentJson, table: &Path) -> String {
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "paper 003 frequency experiment: G(s) = [{}]/[{}], f_a = {:?}, f_d = {:?}, U = {}, noise std {}",
-        join(&out.plant.num),
-        join(&out.plant.den),
-        out.plant.fa,
-        out.plant.fd,
-        out.plant.amplitude,
-        out.plant.noise_std
-    );
-    let _ = writeln!(
-        s,
-        "{:>8} {:>5} {:>6} {:>10} {:>10} {:>10} {:>10} {:>9} {:>9} {:>8}",
-        "omega", "path", "as", "phase", "true", "gain", "true", "max|dfa|", "max|dfd|", "periods"
-    );
-    for r in out.rows.iter().map(|r| r.row) {
-        match (&r.estimate, &r.matched) {
-            (Some(e), Some(m)) => {
-                let _ = writeln!(
-                    s,
-                    "{:>8.4} {:>5} {:>6} {:>10.5} {:>10.5} {:>10.5} {:>10.5} {:>9.2e} {:>9.2e} {:>8}",
-                    r.omega,
-                    format!("{:?}", e.path).to_lowercase(),
-                    m.reported,
-                    m.as_model.phase,
-                    r.truth.phase,
-                    m.as_model.gain,
-                    r.truth.gain,
-                    m.errors.fa,
-                    m.errors.fd,
-                    e.periods_used
-                );
-            }
-            _ => {
-                let _ = writeln!(
-                    s,
-                    "{:>8.4} failed: {}",
-                    r.omega,
-                    r.error.as_deref().unwrap_or("?")
-                );
-            }
-        }
-    }
-    let _ = writeln!(
-        s,
-        "(phases and gains in the true model's convention; truth = ZOH-sampled response)"
-    );
-    let _ = writeln!(s, "table: {}", table.display());
-    for p in &out.plots {
-        let _ = writeln!(s, "plot: {p}");
-    }
-    s
-}
-
-fn join(v: &[f64]) -> String {
-    v.iter()
-        .map(|x| x.to_string())
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-#[derive(Serialize)]
-struct SteppedExperimentJson<'a> {
-    method: &'static str,
-    plant: &'a ExperimentPlant,
-    design: &'a SteppedDesign,
-    #[serde(flatten)]
-    result: &'a SteppedResult,
-    convention: &'static str,
-    truth_note: &'static str,
-    data: String,
-    csv: String,
-    plots: Vec<String>,
-}
-
-fn run_stepped_experiment(args: &ExperimentArgs, plant: &ExperimentPlant) -> Result<()> {
-    let design = SteppedDesign {
-        omegas: args.omegas.clone(),
-        degree: args.degree,
-        ts: args.ts,
-        hold_periods: args.periods,
-        ramp_periods: args.ramp_periods,
-        pause: args.pause,
-    };
-    let result = run_stepped(plant, &design)?;
-    create_dir(&args.out)?;
-    let data = args.out.join("stepped.csv");
-    write_record(&data, &result.record)?;
-    let csv = args.out.join("bode.csv");
-    write_bode_csv(&csv, &result.analysis.bode)?;
-    let as_points = |pick: &dyn Fn(&SteppedRow) -> Option<&Matched>| -> Vec<BodePoint> {
-        result
-            .rows
-            .iter()
-            .filter_map(|r| pick(r).map(|m| point(r.omega, &m.as_model, plant.amplitude)))
-            .collect()
-    };
-    let stepped = as_points(&|r| r.stepped.as_ref());
-    let single = as_points(&|r| r.single.as_ref());
-    let (lo, hi) = span(&args.omegas);
-    let curve = bode_curve(plant, result.analysis.degree, lo, hi, 300)?;
-    let mut plots = bode_plots(
-        &args.out,
-        Some(&curve),
-        &[
-            ("stepped-sine record", &stepped),
-            ("single-frequency records", &single),
-        ],
-    )?;
-    let truths: Vec<TrueBorders> = result
-        .rows
-        .iter()
-        .filter(|r| r.stepped.is_some())
-        .map(|r| {
-            (
-                r.truth.fa.clone(),
-                r.truth.fd.clone(),
-                plant.amplitude * r.truth.gain,
-            )
-        })
-        .collect();
-    plots.extend(border_panels(&args.out, &stepped, Some(&truths))?);
-    plots.push(steps_plot(
-        &args.out,
-        &result.record.t,
-        &result.record.u,
-        &result.analysis,
-    )?);
-    let out = SteppedExperimentJson {
-        method: "stepped-sine-experiment",
-        plant,
-        design: &design,
-        result: &result,
-        convention: CONVENTION,
-        truth_note: TRUTH_NOTE,
-        data: data.display().to_string(),
-        csv: csv.display().to_string(),
-        plots,
-    };
-    let json = serde_json::to_string_pretty(&out)?;
-    let table_path = args.out.join("frequency.json");
-    write_atomic(&table_path, |f| writeln!(f, "{json}"))
-        .with_context(|| format!("{}: cannot write", table_path.display()))?;
-    if args.json {
-        return emit(&format!("{}\n", serde_json::to_string(&out)?));
-    }
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "stepped-sine experiment: {} steps, Ts = {} s, {} held periods, ramps of {} periods, degree {} ({})",
-        design.omegas.len(),
-        design.ts,
-        design.hold_periods,
-        design.ramp_periods,
-        result.analysis.degree,
-        result.analysis.degree_rule
-    );
-    let _ = writeln!(
-        s,
-        "{:>8} {:>12} {:>12} {:>12} {:>12}",
-        "omega", "phase err", "single", "gain err", "single"
-    );
-    for r in &result.rows {
-        let e = |m: &Option<Matched>| m.as_ref().map(|m| (m.errors.phase, m.errors.gain));
-        match (e(&r.stepped), e(&r.single)) {
-            (Some(a), Some(b)) => {
-                let _ = writeln!(
-                    s,
-                    "{:>8.4} {:>12.3e} {:>12.3e} {:>12.3e} {:>12.3e}",
-                    r.omega, a.0, b.0, a.1, b.1
-                );
-            }
-            _ => {
-                let _ = writeln!(
-                    s,
-                    "{:>8.4} failed: {}",
-                    r.omega,
-                    r.error.as_deref().unwrap_or("the step was not found")
-                );
-            }
-        }
-    }
-    let _ = writeln!(s, "table: {}", table_path.display());
-    let _ = writeln!(s, "data: {}, csv: {}", out.data, out.csv);
-    for p in &out.plots {
-        let _ = writeln!(s, "plot: {p}");
-    }
-    emit(&s)
 }

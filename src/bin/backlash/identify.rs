@@ -1,23 +1,27 @@
 //! `backlash identify mrgia`: the recursive MRGIA estimator of paper 000 on a data file.
 
 use anyhow::{Context, Result};
-use backlash::api::{MrgiaSettings, mrgia_json};
-use backlash::identify::mrgia::{MrgiaConfig, StepResult};
+use backlash::api::{InputCheck, MrgiaSettings, mrgia_json};
+use backlash::identify::mrgia::StepResult;
 use backlash::identify::oe::online::OnlineEstimator;
-use backlash::io::{AtomicFile, ReadAhead, RowReader};
+use backlash::identify::oe::{param_names, theta_of};
+use backlash::io::{AtomicFile, ReadAhead};
 use backlash::report::plot::{Axes, Series, line_plot};
-use indicatif::{ProgressBar, ProgressStyle};
-use serde_json::json;
+use indicatif::ProgressBar;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+use super::common::{RecordArgs, bar, print_json, print_warnings};
 
 /// Files larger than this (about 200,000 rows) show a progress bar (when not in --json mode).
 const PROGRESS_MIN_BYTES: u64 = 5_000_000;
 
 #[derive(clap::Args)]
 pub struct MrgiaArgs {
-    /// Data file: CSV with columns time,u,y (any order; other columns ignored).
+    /// Data file: CSV with columns time,u,y (any order; other columns ignored; names configurable).
     pub file: PathBuf,
+    #[command(flatten)]
+    pub record: RecordArgs,
     /// Number of a coefficients (0 to 4).
     #[arg(long)]
     pub na: usize,
@@ -79,22 +83,9 @@ impl MrgiaArgs {
     }
 }
 
-fn names(cfg: &MrgiaConfig) -> Vec<String> {
-    (1..=cfg.na)
-        .map(|i| format!("a{i}"))
-        .chain((0..=cfg.nb).map(|j| format!("b{j}")))
-        .chain(["m2", "c1", "c2"].map(String::from))
-        .collect()
-}
-
-/// The estimate as one vector in the order of [`names`].
+/// The estimate as one vector in the order of `param_names`.
 fn flat(est: &OnlineEstimator) -> Vec<f64> {
-    let e = est.estimate();
-    e.a.iter()
-        .chain(&e.b)
-        .copied()
-        .chain([e.m2, e.c1, e.c2])
-        .collect()
+    theta_of(&est.estimate())
 }
 
 /// Points of the trajectory kept for `--plot`: at most this many (plus the last sample) whatever the file's
@@ -167,118 +158,173 @@ impl Decimated {
     }
 }
 
+/// The estimator over a record with what it writes on the way: the trace, the plot's points, the counts.
+struct Pass {
+    est: OnlineEstimator,
+    labels: Vec<String>,
+    trace: Option<(AtomicFile, PathBuf)>,
+    plot: Option<Decimated>,
+    check: InputCheck,
+    updates: u64,
+    k: u64,
+}
+
+impl Pass {
+    fn new(args: &MrgiaArgs, settings: &MrgiaSettings) -> Result<Self> {
+        let cfg = settings
+            .config(args.na, args.nb, args.delay)
+            .context("invalid estimator setting")?;
+        let labels = param_names(cfg.na, cfg.nb);
+        let trace = match &args.trace {
+            Some(path) => {
+                let mut f = AtomicFile::create(path)
+                    .with_context(|| format!("{}: cannot write the trace", path.display()))?;
+                writeln!(f, "time,{},y_hat,e,updating", labels.join(","))
+                    .with_context(|| format!("{}: cannot write the trace", path.display()))?;
+                Some((f, path.clone()))
+            }
+            None => None,
+        };
+        Ok(Pass {
+            est: OnlineEstimator::new(cfg, args.refine)?,
+            plot: args.plot.as_ref().map(|_| Decimated::new(labels.len())),
+            labels,
+            trace,
+            check: InputCheck::default(),
+            updates: 0,
+            k: 0,
+        })
+    }
+
+    /// One sample (t, u, y).
+    fn step(&mut self, row: &[f64]) -> Result<()> {
+        let r = self.est.update(row[1], row[2]);
+        self.updates += u64::from(r.updating);
+        self.check.push(row[1]);
+        if let Some((w, path)) = &mut self.trace {
+            write_trace_row(w, row[0], &flat(&self.est), &r)
+                .with_context(|| format!("{}: cannot write the trace", path.display()))?;
+        }
+        if let Some(p) = &mut self.plot
+            && p.wants(self.k)
+        {
+            p.push(self.k, &flat(&self.est));
+        }
+        self.k += 1;
+        Ok(())
+    }
+
+    /// Every row of the file (decimated), read and parsed on a second thread one batch ahead.
+    fn read(&mut self, args: &MrgiaArgs, progress: &ProgressBar) -> Result<()> {
+        let options = args.record.options();
+        let (rows, _) = options.open(&args.file, true)?;
+        let mut block = options.block(3);
+        let mut rows = ReadAhead::spawn(rows);
+        while let Some(batch) = rows.next_batch()? {
+            for row in batch.values.chunks_exact(3) {
+                if let Some(mean) = block.push(row) {
+                    let mean = mean.to_vec();
+                    self.step(&mean)?;
+                }
+            }
+            progress.set_position(batch.bytes_read);
+            progress.set_message(format!("{} samples", self.k));
+            rows.recycle(batch);
+        }
+        Ok(())
+    }
+}
+
 /// The file is read, checked and estimated in one pass, row by row: memory does not depend on its length
 /// (the trace is written as it goes, the plot keeps at most [`PLOT_POINTS`] points).
 pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
     let settings = args.settings();
-    let cfg = settings
-        .config(args.na, args.nb, args.delay)
-        .context("invalid estimator setting")?;
-    let mut est = OnlineEstimator::new(cfg, args.refine)?;
-    let rows = RowReader::open(&args.file, &["time", "u", "y"])?;
-    let labels = names(&cfg);
-    let mut trace = match &args.trace {
-        Some(path) => {
-            let mut f = AtomicFile::create(path)
-                .with_context(|| format!("{}: cannot write the trace", path.display()))?;
-            writeln!(f, "time,{},y_hat,e,updating", labels.join(","))
-                .with_context(|| format!("{}: cannot write the trace", path.display()))?;
-            Some((f, path))
-        }
-        None => None,
-    };
-    let mut plot = args.plot.as_ref().map(|_| Decimated::new(labels.len()));
+    let mut pass = Pass::new(args, &settings)?;
     let file_bytes = std::fs::metadata(&args.file).map_or(0, |m| m.len());
-    let bar = (!args.json && file_bytes >= PROGRESS_MIN_BYTES).then(|| {
-        let b = ProgressBar::new(file_bytes);
-        b.set_style(
-            ProgressStyle::with_template(
-                "{bar:40} {bytes}/{total_bytes} ({bytes_per_sec}, eta {eta}) {msg}",
-            )
-            .expect("valid template"),
+    let progress = bar(
+        args.json || file_bytes < PROGRESS_MIN_BYTES,
+        file_bytes,
+        "{bar:40} {bytes}/{total_bytes} ({bytes_per_sec}, eta {eta}) {msg}",
+    );
+    pass.read(args, &progress)?;
+    progress.finish_and_clear();
+    if pass.k == 0 {
+        anyhow::bail!(
+            "{}: fewer rows than one block of --decimate {}: nothing to estimate",
+            args.file.display(),
+            args.record.decimate
         );
-        b
-    });
-    let mut updates = 0u64;
-    let mut k = 0u64;
-    // Reading and parsing the text run on a second thread, one batch ahead of the estimator.
-    let mut rows = ReadAhead::spawn(rows);
-    while let Some(batch) = rows.next_batch()? {
-        for row in batch.values.chunks_exact(3) {
-            let (t, u, y) = (row[0], row[1], row[2]);
-            let r = est.update(u, y);
-            updates += u64::from(r.updating);
-            if let Some((w, path)) = &mut trace {
-                write_trace_row(w, t, &flat(&est), &r)
-                    .with_context(|| format!("{}: cannot write the trace", path.display()))?;
-            }
-            if let Some(p) = &mut plot
-                && p.wants(k)
-            {
-                p.push(k, &flat(&est));
-            }
-            k += 1;
-        }
-        if let Some(b) = &bar {
-            b.set_position(batch.bytes_read);
-            b.set_message(format!("{k} samples"));
-        }
-        rows.recycle(batch);
     }
-    if let Some(b) = bar {
-        b.finish_and_clear();
-    }
-    let samples = rows.rows().unwrap_or(k);
-    if let Some((w, path)) = trace {
+    if let Some((w, path)) = pass.trace.take() {
         w.commit()
             .with_context(|| format!("{}: cannot write the trace", path.display()))?;
     }
-    let setting = settings.name();
-
-    if let (Some(path), Some(mut p)) = (&args.plot, plot) {
-        p.finish(samples - 1, &flat(&est));
-        let series: Vec<Series> = labels
-            .iter()
-            .enumerate()
-            .map(|(i, l)| Series::line(l, p.series(i)).color(i))
-            .collect();
-        line_plot(
-            path,
-            &format!(
-                "MRGIA estimates ({setting} setting), {}",
-                args.file.display()
-            ),
-            "sample k",
-            "estimate",
-            &series,
-            Axes::LINEAR,
-        )?;
+    if let (Some(path), Some(p)) = (&args.plot, pass.plot.take()) {
+        plot_estimates(path, &args.file, settings.name(), &pass, p)?;
     }
-
+    let out = mrgia_json(
+        &pass.est,
+        pass.k,
+        pass.updates,
+        settings.name(),
+        &pass.check,
+    );
     if args.json {
-        let mut out = mrgia_json(&est, samples, updates, setting);
-        out["file"] = json!(args.file.display().to_string());
-        println!("{out}");
+        print_json(out, &args.file);
     } else {
-        println!(
-            "MRGIA ({setting} setting) on {}: {samples} samples, {updates} updates",
-            args.file.display(),
-        );
-        for (i, (name, v)) in labels.iter().zip(flat(&est)).enumerate() {
-            if args.refine {
-                println!("  {name:>3} = {v:.6}  (std err {:.2e})", est.std_err_at(i));
-            } else {
-                println!("  {name:>3} = {v:.6}");
-            }
-        }
-        if args.refine && est.std_err().is_none() {
-            println!(
-                "  (std err 0: not known yet, the warm-up of the refine setting was not completed)"
-            );
-        }
-        println!("  (m1 = 1 is the normalisation)");
+        print_text(args, &pass, &out);
     }
     Ok(())
+}
+
+fn plot_estimates(
+    path: &Path,
+    file: &Path,
+    setting: &str,
+    pass: &Pass,
+    mut p: Decimated,
+) -> Result<()> {
+    p.finish(pass.k - 1, &flat(&pass.est));
+    let series: Vec<Series> = pass
+        .labels
+        .iter()
+        .enumerate()
+        .map(|(i, l)| Series::line(l, p.series(i)).color(i))
+        .collect();
+    line_plot(
+        path,
+        &format!("MRGIA estimates ({setting} setting), {}", file.display()),
+        "sample k",
+        "estimate",
+        &series,
+        Axes::LINEAR,
+    )?;
+    Ok(())
+}
+
+fn print_text(args: &MrgiaArgs, pass: &Pass, out: &serde_json::Value) {
+    let est = &pass.est;
+    println!(
+        "MRGIA ({} setting) on {}: {} samples, {} updates",
+        args.settings().name(),
+        args.file.display(),
+        pass.k,
+        pass.updates
+    );
+    for (i, (name, v)) in pass.labels.iter().zip(flat(est)).enumerate() {
+        if args.refine {
+            println!("  {name:>3} = {v:.6}  (std err {:.2e})", est.std_err_at(i));
+        } else {
+            println!("  {name:>3} = {v:.6}");
+        }
+    }
+    if args.refine && est.std_err().is_none() {
+        println!(
+            "  (std err 0: not known yet, the warm-up of the refine setting was not completed)"
+        );
+    }
+    println!("  (m1 = 1 is the normalisation)");
+    print_warnings(out);
 }
 
 /// One line of the trace: time, the estimates, y_hat, e, updating (0/1); numbers in Rust's shortest

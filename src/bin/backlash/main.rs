@@ -2,12 +2,15 @@
 //!
 //! One file per command; no logic here beyond parsing and printing (the library does the work).
 
+mod common;
 mod diagnose;
+mod experiment;
 mod frequency;
 mod identify;
 mod oe;
 mod simulate;
 mod structure;
+mod study;
 
 use clap::{Parser, Subcommand};
 
@@ -31,13 +34,13 @@ enum Command {
     Identify(IdentifyCommand),
     /// Run sine experiments on a simulated plant (continuous block + polynomial-border backlash) at several
     /// frequencies, identify each with paper 003's estimators, and plot |G(jw)| and the borders.
-    Experiment(frequency::ExperimentArgs),
+    Experiment(experiment::ExperimentArgs),
     /// Diagnose a record: fit the declared model, test its residual, name the catalogue effect it lacks (or null).
     Diagnose(diagnose::DiagnoseArgs),
     /// Cramer-Rao bound of the output-error model on an input record: plan an experiment.
     Crb(oe::CrbArgs),
     /// Monte Carlo study of the paper's example: MRGIA, output error and the Cramer-Rao bound against N.
-    Study(oe::StudyArgs),
+    Study(study::StudyArgs),
 }
 
 #[derive(Subcommand)]
@@ -95,11 +98,11 @@ where
         Command::Identify(IdentifyCommand::Mrgia(a)) => identify::run_mrgia(a),
         Command::Identify(IdentifyCommand::Frequency(a)) => frequency::run_identify(a),
         Command::Identify(IdentifyCommand::SteppedSine(a)) => frequency::run_stepped_sine(a),
-        Command::Experiment(a) => frequency::run_experiment(a),
+        Command::Experiment(a) => experiment::run_experiment(a),
         Command::Identify(IdentifyCommand::Oe(a)) => oe::run_oe(a),
         Command::Crb(a) => oe::run_crb(a),
         Command::Diagnose(a) => diagnose::run(a, &typed),
-        Command::Study(a) => oe::run_study(a),
+        Command::Study(a) => study::run_study(a),
     };
     match result {
         Ok(()) => 0,

@@ -454,18 +454,9 @@ impl Acc {
     }
 }
 
+/// The median, NaN for no values (a study cell in which every run failed).
 fn median(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let m = s.len() / 2;
-    if s.len().is_multiple_of(2) {
-        0.5 * (s[m - 1] + s[m])
-    } else {
-        s[m]
-    }
+    crate::stats::median(v).unwrap_or(f64::NAN)
 }
 
 /// One N of one run: the estimates of the two MRGIA settings, refine's estimate and standard errors (when
