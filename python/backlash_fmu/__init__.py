@@ -20,7 +20,7 @@ import numpy as np
 from . import _backlash
 
 __version__ = _backlash.__version__
-__all__ = ["fmu_path", "simulate", "identify_mrgia", "identify_oe", "identify_frequency", "crb", "diagnose"]
+__all__ = ["fmu_path", "simulate", "identify_mrgia", "identify_oe", "identify_frequency", "crb", "diagnose", "monitor"]
 
 MODELS = ("BacklashPlant", "MrgiaEstimator")
 _HERE = pathlib.Path(__file__).resolve().parent
@@ -173,3 +173,17 @@ def diagnose(u, y, na=None, nb=None, delay=None, **options):
     """
     text = _backlash.diagnose(_array(u, "u"), _array(y, "y"), na, nb, delay, **options)
     return _result(text, file=None, decimate=1, validate_on=[], report=None)
+
+
+def monitor(u, y, na, nb, delay, wear_ratio=0.1, alarm_period=1e6, *, learn=2000, reference_play=None, ts=1.0,
+            recommended=False):
+    """The wear monitor of `backlash monitor --json` on the samples: {"alarms": [...], "play": .., "play_se": ..,
+    ...} with the times of sample k as k * ts.
+
+    wear_ratio: relative growth of the play c1 + c2 to detect; alarm_period: mean samples between false
+    alarms; learn: samples of the refined estimator before the reference is frozen; reference_play: the
+    reference play when known; recommended: MRGIA's recommended setting for the warm-up.
+    """
+    text = _backlash.monitor(_array(u, "u"), _array(y, "y"), na, nb, delay, wear_ratio, alarm_period, learn,
+                             reference_play, ts, recommended)
+    return _result(text, file=None, decimate=1)

@@ -5,6 +5,7 @@
 mod diagnose;
 mod frequency;
 mod identify;
+mod monitor;
 mod oe;
 mod simulate;
 mod structure;
@@ -36,6 +37,8 @@ enum Command {
     Diagnose(diagnose::DiagnoseArgs),
     /// Cramer-Rao bound of the output-error model on an input record: plan an experiment.
     Crb(oe::CrbArgs),
+    /// Wear monitor: stream a record through the refined estimator and raise an alarm when the play grows.
+    Monitor(monitor::MonitorArgs),
     /// Monte Carlo study of the paper's example: MRGIA, output error and the Cramer-Rao bound against N.
     Study(oe::StudyArgs),
 }
@@ -100,6 +103,7 @@ where
         Command::Crb(a) => oe::run_crb(a),
         Command::Diagnose(a) => diagnose::run(a, &typed),
         Command::Study(a) => oe::run_study(a),
+        Command::Monitor(a) => monitor::run(a),
     };
     match result {
         Ok(()) => 0,
