@@ -202,7 +202,7 @@ impl Window {
     fn projected(&self) -> (f64, f64) {
         let [n, se, sh, shh, sg, sgh, seh, seg, sgg] = self.sums;
         let det = n * shh - sh * sh;
-        if !(det > 1e-12 * (n * shh).max(f64::MIN_POSITIVE)) {
+        if !well_posed(det, n * shh) {
             // h constant within the window: the constant only.
             return (seg - se * sg / n, sgg - sg * sg / n);
         }
@@ -257,7 +257,7 @@ impl Detector {
     fn projection(&self) -> (f64, f64, f64) {
         let n = self.n as f64;
         let det = n * self.shh - self.sh * self.sh;
-        if !(det > 1e-12 * (n * self.shh).max(f64::MIN_POSITIVE)) {
+        if !well_posed(det, n * self.shh) {
             // h is constant (or zero): project on the constant only.
             let b0 = self.sg / n;
             return (b0, 0.0, (self.sgg / n - b0 * b0).max(0.0));
@@ -355,6 +355,12 @@ impl Detector {
         }
         alarm
     }
+}
+
+/// Whether the 2 x 2 normal equations on (1, h) with determinant `det` and scale `n sum h^2` are solvable
+/// (false for NaN).
+fn well_posed(det: f64, scale: f64) -> bool {
+    det > 1e-12 * scale.max(f64::MIN_POSITIVE)
 }
 
 /// H with `ARL0(H) = period` for per-sample distance `kl` (module docs); +inf when kl is 0 (no test).

@@ -381,7 +381,10 @@ pub fn rule_crossings(
 
 /// Delay of the rule at `tau` for a change at `at` (None: no alarm within `horizon`; a crossing before the
 /// change is ignored, as the monitor's early alarms are).
-#[allow(clippy::too_many_arguments)]
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the study's cell: plant, noise, seed, rule, change"
+)]
 pub fn rule_delay(
     plant: PlantParams,
     sigma: f64,
