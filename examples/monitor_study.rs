@@ -164,7 +164,7 @@ fn delay_table(threads: usize, name: &str, snr: f64, period: f64, runs: u64, arl
     // The threshold rule: tuned on unchanged records to the monitor's measured run length.
     let taus: Vec<f64> = (1..=400).map(|j| j as f64 * 0.0025 * play).collect();
     let tune_runs = 8u64;
-    let tune_len = ((arl.min(1e5) * 20.0) / tune_runs as f64) as u64;
+    let tune_len = ((arl * 100.0) / tune_runs as f64) as u64;
     let counts = parallel(threads, tune_runs as usize, |r| {
         rule_crossings(
             pl,
@@ -389,7 +389,7 @@ fn main() {
         let arl = fa
             .iter()
             .find(|r| r.0 == "paper" && r.1 == snr && r.2 == 1e4)
-            .map_or(1e4, |r| r.3);
+            .map_or(1e4, |r| r.3.min(1e6));
         delay_table(threads, "paper", snr, 1e4, runs, arl);
     }
     println!(
