@@ -22,7 +22,7 @@ from . import _backlash
 
 __version__ = _backlash.__version__
 __all__ = ["fmu_path", "simulate", "identify_mrgia", "identify_oe", "identify_frequency", "crb", "diagnose",
-           "PLANT_PARAMETERS"]
+           "monitor", "PLANT_PARAMETERS"]
 
 #: The names `simulate` takes: "a" and "b" (lists), then every parameter of BacklashPlant.fmu, read from its
 #: model description.
@@ -223,3 +223,17 @@ def diagnose(u, y, na=None, nb=None, delay=None, *, ts=None, max_delay=10, fit_f
         _array(u, "u"), _array(y, "y"), na, nb, delay, ts, max_delay, fit_fraction, seed, max_effects,
         time_budget, decimate, report))
     return _result(text, file=None, validate_on=[], report=None)
+
+
+def monitor(u, y, na, nb, delay, wear_ratio=0.1, alarm_period=1e6, *, learn=2000, reference_play=None, ts=1.0,
+            recommended=False):
+    """The wear monitor of `backlash monitor --json` on the samples: {"alarms": [...], "play": .., "play_se": ..,
+    ...} with the times of sample k as k * ts.
+
+    wear_ratio: relative growth of the play c1 + c2 to detect; alarm_period: mean samples between false
+    alarms; learn: samples of the refined estimator before the reference is frozen; reference_play: the
+    reference play when known; recommended: MRGIA's recommended setting for the warm-up.
+    """
+    text = _backlash.monitor(_array(u, "u"), _array(y, "y"), na, nb, delay, wear_ratio, alarm_period, learn,
+                             reference_play, ts, recommended)
+    return _result(text, file=None)

@@ -196,7 +196,7 @@ class _Slave:
 
 
 def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None, ts=1.0, record_every=1,
-             checkpoints=None, callbacks=None, plant_events=None):
+             checkpoints=None, callbacks=None, plant_events=None, estimator_outputs=()):
     """Co-simulate plant and estimator over the samples u (one communication step of ts per sample).
 
     Returns a dict of numpy arrays:
@@ -209,6 +209,8 @@ def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None
       'names'     the column names of 'estimates'
     `plant_events` maps a sample index k to {name: value} set on the plant before it reads u(k) (tunable
     parameters such as c1, c2: a wear step in the middle of a run).
+    `estimator_outputs` names further estimator outputs (Real or Boolean, e.g. the wear monitor's) recorded at
+    the same points into 'outputs' (a dict of arrays by name).
     """
     u = np.asarray(u, dtype=float)
     n = len(u)
@@ -235,6 +237,8 @@ def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None
         vr_eu_ey = [est.vr("u"), est.vr("y")]
         vr_out = [est.vr(k) for k in ESTIMATE_NAMES + STD_ERR_NAMES] + [est.vr("y_hat"), est.vr("e")]
         vr_upd = [est.vr("updating")]
+        extra = {name: (est.vr(name), est.vars[name].type == "Boolean") for name in estimator_outputs}
+        extra_rows = {name: [] for name in estimator_outputs}
 
         y = np.empty(n)
         rows, upd = [], []
@@ -253,6 +257,8 @@ def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None
             if k + 1 in want_set:
                 rows.append(e.getReal(vr_out))
                 upd.append(e.getBoolean(vr_upd)[0])
+                for name, (vr, boolean) in extra.items():
+                    extra_rows[name].append(e.getBoolean([vr])[0] if boolean else e.getReal([vr])[0])
         for s in (p, e):
             s.terminate()
         m = len(ESTIMATE_NAMES)
@@ -266,6 +272,7 @@ def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None
             "e": rows[:, -1],
             "updating": np.array(upd, dtype=bool),
             "names": list(ESTIMATE_NAMES),
+            "outputs": {name: np.array(v) for name, v in extra_rows.items()},
         }
     finally:
         for s in (est, plant):

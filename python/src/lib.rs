@@ -398,6 +398,59 @@ fn diagnose(
     stages.finish(r)
 }
 
+/// monitor(u, y, na, nb, delay, wear_ratio, alarm_period, learn, reference_play, ts, recommended)
+/// -> the JSON text of `backlash monitor` (times are k ts).
+#[pyfunction]
+#[pyo3(signature = (u, y, na, nb, delay, wear_ratio=0.1, alarm_period=1e6, learn=2000, reference_play=None,
+    ts=1.0, recommended=false))]
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the Python signature: keyword arguments with defaults"
+)]
+fn monitor(
+    py: Python<'_>,
+    u: PyReadonlyArray1<'_, f64>,
+    y: PyReadonlyArray1<'_, f64>,
+    na: usize,
+    nb: usize,
+    delay: usize,
+    wear_ratio: f64,
+    alarm_period: f64,
+    learn: u64,
+    reference_play: Option<f64>,
+    ts: f64,
+    recommended: bool,
+) -> PyResult<String> {
+    use backlash::identify::mrgia::MrgiaConfig;
+    use backlash::identify::oe::online::monitor::{MonitorConfig, Session};
+    if !(ts.is_finite() && ts > 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "the sample period ts = {ts} must be a positive finite number of seconds"
+        )));
+    }
+    let cfg = MonitorConfig {
+        wear_ratio,
+        alarm_period,
+        learn,
+        reference_play,
+        follow: true,
+    };
+    let (u, y) = (u.as_slice()?, y.as_slice()?);
+    compute(py, || {
+        api::check_record(&[("u", u), ("y", y)], 1)?;
+        let est = if recommended {
+            MrgiaConfig::recommended(na, nb, delay)
+        } else {
+            MrgiaConfig::paper(na, nb, delay)
+        };
+        let mut session = Session::new(est, cfg).map_err(|e| ApiError::Setting(e.to_string()))?;
+        for (k, (&uk, &yk)) in u.iter().zip(y).enumerate() {
+            session.push(k as f64 * ts, uk, yk);
+        }
+        serde_json::to_string(&session.summary()).map_err(|e| ApiError::Setting(e.to_string()))
+    })
+}
+
 /// run_cli(argv) -> exit status: the `backlash` program on a command line (its name first), with the GIL
 /// released (a long `backlash study` does not hold up other threads).
 #[pyfunction]
@@ -414,6 +467,7 @@ fn _backlash(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(identify_frequency, m)?)?;
     m.add_function(wrap_pyfunction!(crb, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(monitor, m)?)?;
     m.add_function(wrap_pyfunction!(run_cli, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

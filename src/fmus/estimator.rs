@@ -8,12 +8,16 @@
 //! `refine` selects [`crate::identify::oe::online::Refined`] (MRGIA for a warm-up, then the recursive output-error estimator) instead of
 //! plain MRGIA; the `*_se` outputs are its standard errors (0 without refine, during the warm-up and beyond
 //! na/nb).
+//!
+//! `monitor` (which implies `refine`) adds the wear monitor of [`crate::identify::oe::online::monitor`]: it
+//! drives the refined estimator sample by sample; sample k has the time k Ts (from the start time).
 
 use super::mrgia_estimator::{self as md, Var};
 use crate::fmi::Model;
 use crate::fmi::vars::{Value, VarInfo};
 use crate::identify::mrgia::{MrgiaConfig, StepResult};
 use crate::identify::oe::online::OnlineEstimator as Running;
+use crate::identify::oe::online::monitor::{Monitor, MonitorConfig, play_of};
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -29,6 +33,10 @@ pub struct EstimatorFmu {
     u: f64,
     y: f64,
     est: Option<Running>,
+    /// The wear monitor's switch and settings (`wear_reference` 0 is None), and the monitor once running.
+    monitor: bool,
+    wear: MonitorConfig,
+    mon: Option<Monitor>,
 }
 
 impl EstimatorFmu {
@@ -68,8 +76,72 @@ impl EstimatorFmu {
             None => self
                 .config()
                 .ok()
-                .and_then(|c| Running::new(c, self.refine).map_err(|e| e.to_string()).ok())
+                .and_then(|c| {
+                    Running::new(c, self.refines())
+                        .map_err(|e| e.to_string())
+                        .ok()
+                })
                 .map(std::borrow::Cow::Owned),
+        }
+    }
+}
+
+impl EstimatorFmu {
+    /// A restored monitor matches the parameters (present exactly when `monitor` is on, same settings).
+    fn check_monitor(&self) -> Result<(), String> {
+        match (&self.mon, self.monitor) {
+            (None, false) => Ok(()),
+            (Some(m), true) if *m.config() == self.wear => m.check(),
+            _ => Err("the wear monitor's state differs from the parameters monitor, wear_*".into()),
+        }
+    }
+
+    /// `refine`, or implied by `monitor`.
+    fn refines(&self) -> bool {
+        self.refine || self.monitor
+    }
+
+    /// play and play_se of the current estimate (0 before initialisation; se 0 without refine).
+    fn play(&self) -> (f64, f64) {
+        match &self.est {
+            Some(Running::Refined(r)) => play_of(r),
+            Some(Running::Plain(m)) => {
+                let e = m.estimate();
+                (e.c1 + e.c2, 0.0)
+            }
+            None => (0.0, 0.0),
+        }
+    }
+
+    fn wear_value(&self, var: Var) -> Value {
+        let first = self.mon.as_ref().and_then(Monitor::first_alarm);
+        match var {
+            Var::Monitor => Value::Boolean(self.monitor),
+            Var::WearRatio => Value::Real(self.wear.wear_ratio),
+            Var::AlarmPeriod => Value::Real(self.wear.alarm_period),
+            Var::WearLearn => Value::Integer(i32::try_from(self.wear.learn).unwrap_or(i32::MAX)),
+            Var::WearReference => Value::Real(self.wear.reference_play.unwrap_or(0.0)),
+            Var::Play => Value::Real(self.play().0),
+            Var::PlaySe => Value::Real(self.play().1),
+            Var::WearStatistic => Value::Real(self.mon.as_ref().map_or(0.0, Monitor::statistic)),
+            Var::WearAlarm => Value::Boolean(first.is_some()),
+            Var::WearOnset => Value::Real(first.map_or(0.0, |a| a.onset)),
+            _ => Value::Real(0.0),
+        }
+    }
+
+    fn set_wear(&mut self, var: Var, value: Value) {
+        let w = &mut self.wear;
+        match var {
+            Var::Monitor => self.monitor = value.as_bool(),
+            Var::WearRatio => w.wear_ratio = value.as_real(),
+            Var::AlarmPeriod => w.alarm_period = value.as_real(),
+            Var::WearLearn => w.learn = value.as_integer().max(0) as u64,
+            Var::WearReference => {
+                let x = value.as_real();
+                w.reference_play = (x != 0.0).then_some(x);
+            }
+            _ => {}
         }
     }
 }
@@ -98,6 +170,9 @@ impl Model for EstimatorFmu {
             u: 0.0,
             y: 0.0,
             est: None,
+            monitor: false,
+            wear: MonitorConfig::default(),
+            mon: None,
         }
     }
 
@@ -169,6 +244,16 @@ impl Model for EstimatorFmu {
             Var::YHat => r(last().y_hat),
             Var::E => r(last().e),
             Var::Updating => Value::Boolean(last().updating),
+            Var::Monitor
+            | Var::WearRatio
+            | Var::AlarmPeriod
+            | Var::WearLearn
+            | Var::WearReference
+            | Var::Play
+            | Var::PlaySe
+            | Var::WearStatistic
+            | Var::WearAlarm
+            | Var::WearOnset => self.wear_value(var),
         }
     }
 
@@ -190,6 +275,11 @@ impl Model for EstimatorFmu {
             Var::Eps => s.eps = x,
             Var::Sigma0 => s.sigma0 = x,
             Var::CInit => s.c_init = x,
+            Var::Monitor
+            | Var::WearRatio
+            | Var::AlarmPeriod
+            | Var::WearLearn
+            | Var::WearReference => self.set_wear(var, value),
             // Outputs: the layer refuses to set them before calling here.
             Var::A1
             | Var::A2
@@ -217,13 +307,23 @@ impl Model for EstimatorFmu {
             | Var::B4Se
             | Var::M2Se
             | Var::C1Se
-            | Var::C2Se => {}
+            | Var::C2Se
+            | Var::Play
+            | Var::PlaySe
+            | Var::WearStatistic
+            | Var::WearAlarm
+            | Var::WearOnset => {}
         }
     }
 
     fn exit_initialization(&mut self) -> Result<(), String> {
         let cfg = self.config()?;
-        self.est = Some(Running::new(cfg, self.refine).map_err(|e| e.to_string())?);
+        self.est = Some(Running::new(cfg, self.refines()).map_err(|e| e.to_string())?);
+        self.mon = if self.monitor {
+            Some(Monitor::new(self.wear).map_err(|e| e.to_string())?)
+        } else {
+            None
+        };
         Ok(())
     }
 
@@ -241,9 +341,10 @@ impl Model for EstimatorFmu {
             None => Ok(()),
             Some(e) => {
                 e.check()?;
-                if e.refining_kind() != self.refine {
+                if e.refining_kind() != self.refines() {
                     return Err("the estimator's kind differs from the parameter refine".into());
                 }
+                self.check_monitor()?;
                 let c = e.config();
                 c.validate().map_err(|e| e.to_string())?;
                 if (c.na, c.nb, c.delay)
@@ -265,7 +366,15 @@ impl Model for EstimatorFmu {
             "the estimator is not initialised (fmi2ExitInitializationMode was not called)",
         )?;
         for _ in 0..n {
-            est.update(self.u, self.y);
+            match (&mut self.mon, &mut *est) {
+                (Some(m), Running::Refined(r)) => {
+                    let t = r.samples() as f64 * self.ts;
+                    m.update(r, t, self.u, self.y);
+                }
+                _ => {
+                    est.update(self.u, self.y);
+                }
+            }
         }
         Ok(())
     }

@@ -94,7 +94,7 @@ fn flat(est: &OnlineEstimator) -> Vec<f64> {
 pub const PLOT_POINTS: usize = 4096;
 
 /// The estimates at every `stride`-th sample, the stride doubling whenever [`PLOT_POINTS`] are held.
-struct Decimated {
+pub(crate) struct Decimated {
     width: usize,
     stride: u64,
     /// Sample index k (0-based) of each kept point.
@@ -104,7 +104,7 @@ struct Decimated {
 }
 
 impl Decimated {
-    fn new(width: usize) -> Self {
+    pub(crate) fn new(width: usize) -> Self {
         Decimated {
             width,
             stride: 1,
@@ -114,11 +114,11 @@ impl Decimated {
     }
 
     /// Whether sample `k` would be kept (so that the caller computes its estimates only then).
-    fn wants(&self, k: u64) -> bool {
+    pub(crate) fn wants(&self, k: u64) -> bool {
         k.is_multiple_of(self.stride)
     }
 
-    fn push(&mut self, k: u64, values: &[f64]) {
+    pub(crate) fn push(&mut self, k: u64, values: &[f64]) {
         if !self.wants(k) {
             return;
         }
@@ -141,7 +141,7 @@ impl Decimated {
     }
 
     /// Add the last sample `k` (drawn even when the stride skips it); no push after this.
-    fn finish(&mut self, k: u64, values: &[f64]) {
+    pub(crate) fn finish(&mut self, k: u64, values: &[f64]) {
         if self.k.last() != Some(&k) {
             self.k.push(k);
             self.values.extend_from_slice(values);
@@ -149,7 +149,7 @@ impl Decimated {
     }
 
     /// The series of estimate `i` as (sample number k + 1, value).
-    fn series(&self, i: usize) -> Vec<(f64, f64)> {
+    pub(crate) fn series(&self, i: usize) -> Vec<(f64, f64)> {
         self.k
             .iter()
             .zip(self.values.chunks_exact(self.width))

@@ -7,6 +7,7 @@ mod diagnose;
 mod experiment;
 mod frequency;
 mod identify;
+mod monitor;
 mod oe;
 mod simulate;
 mod structure;
@@ -39,6 +40,8 @@ enum Command {
     Diagnose(diagnose::DiagnoseArgs),
     /// Cramer-Rao bound of the output-error model on an input record: plan an experiment.
     Crb(oe::CrbArgs),
+    /// Wear monitor: stream a record through the refined estimator and raise an alarm when the play grows.
+    Monitor(monitor::MonitorArgs),
     /// Monte Carlo study of the paper's example: MRGIA, output error and the Cramer-Rao bound against N.
     Study(study::StudyArgs),
 }
@@ -103,6 +106,7 @@ where
         Command::Crb(a) => oe::run_crb(a),
         Command::Diagnose(a) => diagnose::run(a, &typed),
         Command::Study(a) => study::run_study(a),
+        Command::Monitor(a) => monitor::run(a),
     };
     match result {
         Ok(()) => 0,

@@ -587,5 +587,6 @@ fn project(th: &mut Theta, old: &Theta) {
     }
 }
 
+pub mod monitor;
 #[cfg(test)]
 mod tests;

@@ -1,0 +1,401 @@
+//! The wear monitor's study: false-alarm run lengths, detection delays against the threshold rule and the
+//! Kullback-Leibler bound, and alarms on changes that are not wear. Prints the Markdown tables of
+//! docs/RESULTS.md ("Wear monitoring").
+//!
+//! ```sh
+//! cargo run --release --example monitor_study -- [--threads 2] [--runs 40]
+//! ```
+//!
+//! All runs of a table go to `--threads` worker threads of this one process (a shared job counter).
+
+use backlash::identify::oe::online::monitor::MonitorConfig;
+use backlash::identify::oe::online::monitor::study::{
+    Change, arl_interval, detect, drift_delay_bound, false_alarms, kl_per_sample, noise_std,
+    rule_crossings, rule_delay, step_delay_bound,
+};
+use backlash::identify::oe::plant_variant;
+use backlash::plant::PlantParams;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Forgetting of the threshold rule's estimator (memory about 500 samples).
+const RULE_RHO_MIN: f64 = 0.002;
+/// Samples after the reference at which a change comes in the delay runs.
+const AFTER: u64 = 2000;
+
+fn parallel<T: Send>(threads: usize, jobs: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let next = AtomicUsize::new(0);
+    let out: Mutex<Vec<Option<T>>> = Mutex::new((0..jobs).map(|_| None).collect());
+    std::thread::scope(|s| {
+        for _ in 0..threads {
+            s.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i >= jobs {
+                        break;
+                    }
+                    let r = f(i);
+                    out.lock().unwrap()[i] = Some(r);
+                }
+            });
+        }
+    });
+    out.into_inner()
+        .unwrap()
+        .into_iter()
+        .map(|r| r.expect("every job ran"))
+        .collect()
+}
+
+fn plant(name: &str) -> PlantParams {
+    plant_variant(name).expect("a study plant").params
+}
+
+fn cfg(period: f64) -> MonitorConfig {
+    MonitorConfig {
+        alarm_period: period,
+        ..MonitorConfig::default()
+    }
+}
+
+/// Table 1: mean run length to a false alarm. Each (plant, SNR, period) runs `records` records of
+/// `per_record` periods each.
+fn false_alarm_table(
+    threads: usize,
+    records: u64,
+    per_record: f64,
+    max_period: f64,
+) -> Vec<(String, f64, f64, f64, f64)> {
+    let plants = ["paper", "wide-gaps", "reversed-slopes"];
+    let snrs = [20.0, 43.0];
+    let periods: Vec<f64> = [1e3, 1e4, 1e5]
+        .into_iter()
+        .filter(|p| *p <= max_period)
+        .collect();
+    let mut cells = Vec::new();
+    for p in plants {
+        for snr in snrs {
+            for &period in &periods {
+                cells.push((p, snr, period));
+            }
+        }
+    }
+    let jobs: Vec<(usize, u64)> = (0..cells.len())
+        .flat_map(|c| (0..records).map(move |r| (c, r)))
+        .collect();
+    let sigmas: Vec<f64> = cells.iter().map(|c| noise_std(plant(c.0), c.1)).collect();
+    let runs = parallel(threads, jobs.len(), |i| {
+        let (c, r) = jobs[i];
+        let (p, _, period) = cells[c];
+        let n = (per_record * period) as u64;
+        false_alarms(plant(p), sigmas[c], 1000 + r, cfg(period), n)
+    });
+    cells
+        .iter()
+        .enumerate()
+        .map(|(c, &(p, snr, period))| {
+            let (mut s, mut a) = (0, 0);
+            for (j, r) in jobs.iter().zip(&runs) {
+                if j.0 == c {
+                    s += r.0;
+                    a += r.1;
+                }
+            }
+            let (arl, lo, hi) = arl_interval(s, a);
+            println!(
+                "| {p} | {snr} | {period:.0e} | {s} | {a} | {arl:.0} | {lo:.0} - {hi:.0} | {:.2} |",
+                arl / period
+            );
+            (p.to_string(), snr, period, arl, a as f64)
+        })
+        .collect()
+}
+
+struct Delays {
+    ours: Vec<u64>,
+    early: usize,
+    missed: usize,
+    onset_err: Vec<f64>,
+}
+
+fn mean(v: &[u64]) -> f64 {
+    v.iter().sum::<u64>() as f64 / v.len().max(1) as f64
+}
+
+/// Table 2: detection delays on `name` at `snr`, period `period`, `runs` runs per change.
+fn delay_table(threads: usize, name: &str, snr: f64, period: f64, runs: u64, arl: f64) {
+    let pl = plant(name);
+    let sigma = noise_std(pl, snr);
+    let play = pl.backlash.c1 + pl.backlash.c2;
+    let changes: [(&str, f64, bool); 4] = [
+        ("+10% step", 0.10, false),
+        ("+25% step", 0.25, false),
+        ("+50% step", 0.50, false),
+        ("drift +10% per 1000 samples", 1e-4, true),
+    ];
+    let make = |ratio: f64, drift: bool| {
+        move |at: u64| {
+            if drift {
+                Change::PlayDrift { at, rate: ratio }
+            } else {
+                Change::PlayStep { at, ratio }
+            }
+        }
+    };
+    let horizon = 20 * AFTER;
+    // Our monitor.
+    let jobs: Vec<(usize, u64)> = (0..changes.len())
+        .flat_map(|c| (0..runs).map(move |r| (c, r)))
+        .collect();
+    let got = parallel(threads, jobs.len(), |i| {
+        let (c, r) = jobs[i];
+        let (_, ratio, drift) = changes[c];
+        detect(
+            pl,
+            sigma,
+            2000 + r,
+            cfg(period),
+            AFTER,
+            horizon,
+            make(ratio, drift),
+        )
+    });
+    let freeze = got[0].at - AFTER;
+    // The threshold rule: tuned on unchanged records to the monitor's measured run length.
+    let taus: Vec<f64> = (1..=400).map(|j| j as f64 * 0.0025 * play).collect();
+    let tune_runs = 8u64;
+    let tune_len = ((arl * 100.0) / tune_runs as f64) as u64;
+    let counts = parallel(threads, tune_runs as usize, |r| {
+        rule_crossings(
+            pl,
+            sigma,
+            3000 + r as u64,
+            RULE_RHO_MIN,
+            freeze,
+            tune_len,
+            &taus,
+        )
+    });
+    let total = tune_len * tune_runs;
+    let tau = taus
+        .iter()
+        .enumerate()
+        .find(|(j, _)| {
+            let n: u64 = counts.iter().map(|c| c[*j]).sum();
+            n == 0 || total as f64 / n as f64 >= arl
+        })
+        .map_or(f64::INFINITY, |(_, t)| *t);
+    let rule = parallel(threads, jobs.len(), |i| {
+        let (c, r) = jobs[i];
+        let (_, ratio, drift) = changes[c];
+        let at = got[i].at;
+        rule_delay(
+            pl,
+            sigma,
+            2000 + r,
+            RULE_RHO_MIN,
+            freeze,
+            tau,
+            make(ratio, drift)(at),
+            at,
+            horizon,
+        )
+    });
+    let kl10 = kl_per_sample(pl, 0.1, sigma, 20_000);
+    for (c, (label, ratio, drift)) in changes.iter().enumerate() {
+        let mut d = Delays {
+            ours: vec![],
+            early: 0,
+            missed: 0,
+            onset_err: vec![],
+        };
+        let mut rd = vec![];
+        let mut rule_missed = 0;
+        for ((j, g), r) in jobs.iter().zip(&got).zip(&rule) {
+            if j.0 != c {
+                continue;
+            }
+            d.early += usize::from(g.early);
+            match (g.delay, &g.alarm) {
+                (Some(x), Some(a)) if !g.early => {
+                    d.ours.push(x);
+                    d.onset_err.push(a.onset_sample as f64 - g.at as f64);
+                }
+                (None, _) => d.missed += 1,
+                _ => {}
+            }
+            match r {
+                Some(x) => rd.push(*x),
+                None => rule_missed += 1,
+            }
+        }
+        let bound = if *drift {
+            drift_delay_bound(kl10, 0.1, *ratio, period)
+        } else {
+            step_delay_bound(kl_per_sample(pl, *ratio, sigma, 20_000), period)
+        };
+        let onset =
+            d.onset_err.iter().map(|e| e.abs()).sum::<f64>() / d.onset_err.len().max(1) as f64;
+        println!(
+            "| {name} | {snr} | {label} | {:.0} | {:.0} | {:.2} | {:.0} ({rule_missed} missed) | {} | {} | {onset:.0} |",
+            mean(&d.ours),
+            bound,
+            mean(&d.ours) / bound,
+            mean(&rd),
+            d.early,
+            d.missed,
+        );
+    }
+    println!(
+        "(threshold rule: tau = {tau:.4} on the play, rho_min = {RULE_RHO_MIN}; reference frozen at sample {freeze})"
+    );
+}
+
+/// Table 3: alarms after changes that are not wear (the test restarts on the same reference after each).
+fn not_wear_table(threads: usize, name: &str, snr: f64, period: f64, runs: u64) {
+    let pl = plant(name);
+    let sigma = noise_std(pl, snr);
+    let span = (10.0 * period) as u64;
+    let changes = [
+        (
+            "input amplitude x2",
+            Change::InputAmplitude { at: 0, factor: 2.0 },
+        ),
+        (
+            "input amplitude x0.5",
+            Change::InputAmplitude { at: 0, factor: 0.5 },
+        ),
+        (
+            "linear gain +10%",
+            Change::LinearGain { at: 0, factor: 1.1 },
+        ),
+        (
+            "linear gain -10%",
+            Change::LinearGain { at: 0, factor: 0.9 },
+        ),
+        (
+            "output offset +5 sigma",
+            Change::OutputOffset {
+                at: 0,
+                offset: 5.0 * sigma,
+            },
+        ),
+        ("none", Change::None),
+    ];
+    let jobs: Vec<(usize, u64)> = (0..changes.len())
+        .flat_map(|c| (0..runs).map(move |r| (c, r)))
+        .collect();
+    let got = parallel(threads, jobs.len(), |i| {
+        let (c, r) = jobs[i];
+        let seed = 4000 + r;
+        let mut run = backlash::identify::oe::online::monitor::study::Run::new(
+            pl,
+            sigma,
+            seed,
+            Change::None,
+            MonitorConfig {
+                follow: false,
+                ..cfg(period)
+            },
+        );
+        run.learn(100_000);
+        let at = run.k + AFTER;
+        let change = match changes[c].1 {
+            Change::InputAmplitude { factor, .. } => Change::InputAmplitude { at, factor },
+            Change::LinearGain { factor, .. } => Change::LinearGain { at, factor },
+            Change::OutputOffset { offset, .. } => Change::OutputOffset { at, offset },
+            other => other,
+        };
+        let mut run = backlash::identify::oe::online::monitor::study::Run::new(
+            pl,
+            sigma,
+            seed,
+            change,
+            MonitorConfig {
+                follow: false,
+                ..cfg(period)
+            },
+        );
+        let mut alarms = 0u64;
+        while run.k < at + span {
+            let a = run.step();
+            if run.k > at {
+                alarms += u64::from(a.is_some());
+            }
+        }
+        alarms
+    });
+    for (c, (label, _)) in changes.iter().enumerate() {
+        let a: u64 = jobs
+            .iter()
+            .zip(&got)
+            .filter(|(j, _)| j.0 == c)
+            .map(|(_, g)| g)
+            .sum();
+        let (arl, lo, hi) = arl_interval(span * runs, a);
+        println!(
+            "| {label} | {a} | {arl:.0} | {lo:.0} - {hi:.0} | {:.2} |",
+            arl / period
+        );
+    }
+}
+
+/// The README's example record: the paper plant at SNR 20, 8000 samples, the gaps 50% wider from sample 5000.
+fn write_record(path: &str) {
+    use backlash::identify::oe::online::monitor::study::Scenario;
+    use std::io::Write;
+    let pl = plant("paper");
+    let change = Change::PlayStep {
+        at: 5000,
+        ratio: 0.5,
+    };
+    let mut sc = Scenario::new(pl, noise_std(pl, 20.0), 1, change);
+    let mut f = std::io::BufWriter::new(std::fs::File::create(path).expect("writable record"));
+    writeln!(f, "time,u,y").unwrap();
+    for k in 0..8000 {
+        let (u, y) = sc.next_sample();
+        writeln!(f, "{k},{u:?},{y:?}").unwrap();
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let get = |name: &str, default: f64| -> f64 {
+        args.iter()
+            .position(|a| a == name)
+            .and_then(|i| args.get(i + 1))
+            .map_or(default, |v| v.parse().expect("a number"))
+    };
+    if let Some(i) = args.iter().position(|a| a == "--record") {
+        write_record(&args[i + 1]);
+        return;
+    }
+    let threads = get("--threads", 2.0) as usize;
+    let runs = get("--runs", 40.0) as u64;
+    let records = get("--records", 10.0) as u64;
+    let per_record = get("--per-record", 20.0);
+    println!("## False alarms\n");
+    println!(
+        "| plant | SNR | alarm_period | samples tested | alarms | mean run length | 95% interval | ratio to setting |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- |");
+    let fa = false_alarm_table(threads, records, per_record, get("--max-period", 1e5));
+    println!("\n## Detection delay (alarm_period 1e4)\n");
+    println!(
+        "| plant | SNR | change | monitor delay | bound | monitor / bound | threshold rule delay | early alarms | missed | mean abs onset error |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    for snr in [20.0, 43.0] {
+        let arl = fa
+            .iter()
+            .find(|r| r.0 == "paper" && r.1 == snr && r.2 == 1e4)
+            .map_or(1e4, |r| r.3.min(1e6));
+        delay_table(threads, "paper", snr, 1e4, runs, arl);
+    }
+    println!(
+        "\n## Changes that are not wear (paper plant, SNR 20, alarm_period 1e4, 10 periods after the change)\n"
+    );
+    println!("| change | alarms | mean run length | 95% interval | ratio to setting |");
+    println!("| --- | --- | --- | --- | --- |");
+    not_wear_table(threads, "paper", 20.0, 1e4, runs.min(20));
+}

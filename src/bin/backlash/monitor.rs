@@ -1,0 +1,226 @@
+//! `backlash monitor`: the wear monitor of MrgiaEstimator.fmu on a data file, streamed.
+
+use crate::identify::Decimated;
+use anyhow::{Context, Result, bail};
+use backlash::identify::mrgia::MrgiaConfig;
+use backlash::identify::oe::online::monitor::{Alarm, MonitorConfig, Session, play_of};
+use backlash::io::{ReadAhead, RowReader};
+use backlash::report::plot::{Panel, Series, grid_plot};
+use serde_json::json;
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct MonitorArgs {
+    /// Data file: CSV with columns time,u,y (any order; other columns ignored).
+    pub file: PathBuf,
+    /// Number of a coefficients (0 to 4).
+    #[arg(long)]
+    pub na: usize,
+    /// Highest b index (0 to 4): b0..b_nb are estimated.
+    #[arg(long)]
+    pub nb: usize,
+    /// Input delay in samples (1 to 64).
+    #[arg(long)]
+    pub delay: usize,
+    /// Relative growth of the play c1 + c2 to detect (0.1: 10%).
+    #[arg(long, default_value_t = 0.1)]
+    pub wear_ratio: f64,
+    /// Mean number of samples between false alarms on an unchanged plant.
+    #[arg(long, default_value_t = 1e6)]
+    pub alarm_period: f64,
+    /// Samples of the refined estimator (after its warm-up of 500) before the reference model is frozen.
+    #[arg(long, default_value_t = 2000)]
+    pub learn: u64,
+    /// The reference play c1 + c2 when known (default: learned).
+    #[arg(long)]
+    pub reference_play: Option<f64>,
+    /// The estimator's warm-up with the project's recommended MRGIA setting instead of the paper's.
+    #[arg(long)]
+    pub recommended: bool,
+    /// Name of the time column.
+    #[arg(long, default_value = "time")]
+    pub time_col: String,
+    /// Block-average decimation by N before monitoring (1: none).
+    #[arg(long, default_value_t = 1)]
+    pub decimate: usize,
+    /// Print one JSON object on stdout and nothing else there.
+    #[arg(long)]
+    pub json: bool,
+    /// Write a PNG of the play with its 95% band and the statistic against time, with the alarms.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// Block means of (time, u, y) over `factor` rows, one row at a time.
+struct BlockMean {
+    factor: usize,
+    sum: [f64; 3],
+    n: usize,
+}
+
+impl BlockMean {
+    fn push(&mut self, row: &[f64]) -> Option<[f64; 3]> {
+        for (s, v) in self.sum.iter_mut().zip(row) {
+            *s += v;
+        }
+        self.n += 1;
+        (self.n == self.factor).then(|| {
+            let m = self.sum.map(|s| s / self.factor as f64);
+            (self.sum, self.n) = ([0.0; 3], 0);
+            m
+        })
+    }
+}
+
+/// Plotted per sample: time, play, play - 1.96 se, play + 1.96 se, statistic / threshold.
+const PLOTTED: usize = 5;
+
+fn plotted(t: f64, s: &Session) -> [f64; PLOTTED] {
+    let (p, se) = play_of(s.estimator());
+    [t, p, p - 1.96 * se, p + 1.96 * se, s.monitor().statistic()]
+}
+
+pub fn run(args: &MonitorArgs) -> Result<()> {
+    if args.decimate == 0 {
+        bail!("--decimate must be at least 1");
+    }
+    let cfg = MonitorConfig {
+        wear_ratio: args.wear_ratio,
+        alarm_period: args.alarm_period,
+        learn: args.learn,
+        reference_play: args.reference_play,
+        follow: true,
+    };
+    let (na, nb, d) = (args.na, args.nb, args.delay);
+    let est = if args.recommended {
+        MrgiaConfig::recommended(na, nb, d)
+    } else {
+        MrgiaConfig::paper(na, nb, d)
+    };
+    let mut session = Session::new(est, cfg).context("invalid monitor setting")?;
+    let rows = RowReader::open(&args.file, &[args.time_col.as_str(), "u", "y"])?;
+    let mut block = BlockMean {
+        factor: args.decimate,
+        sum: [0.0; 3],
+        n: 0,
+    };
+    let mut plot = args.plot.as_ref().map(|_| Decimated::new(PLOTTED));
+    let (mut k, mut last_t) = (0u64, f64::NAN);
+    let mut rows = ReadAhead::spawn(rows);
+    while let Some(batch) = rows.next_batch()? {
+        for row in batch.values.chunks_exact(3) {
+            let Some([t, u, y]) = block.push(row) else {
+                continue;
+            };
+            if let Some(a) = session.push(t, u, y)
+                && !args.json
+            {
+                print_alarm(&a);
+            }
+            if let Some(p) = &mut plot
+                && p.wants(k)
+            {
+                p.push(k, &plotted(t, &session));
+            }
+            last_t = t;
+            k += 1;
+        }
+        rows.recycle(batch);
+    }
+    if let (Some(path), Some(mut p)) = (&args.plot, plot)
+        && k > 0
+    {
+        p.finish(k - 1, &plotted(last_t, &session));
+        draw(path, args, &p, &session)?;
+    }
+    let mut out = serde_json::to_value(session.summary())?;
+    out["file"] = json!(args.file.display().to_string());
+    out["decimate"] = json!(args.decimate);
+    if args.json {
+        println!("{out}");
+    } else {
+        print_summary(&session, &args.file);
+    }
+    Ok(())
+}
+
+fn print_alarm(a: &Alarm) {
+    println!(
+        "alarm at time {} (sample {}): the change began about {} (sample {}); play {:.4} +/- {:.4} -> {:.4} +/- {:.4}",
+        a.time,
+        a.sample,
+        a.onset,
+        a.onset_sample,
+        a.play_before,
+        a.play_before_se,
+        a.play_after,
+        a.play_after_se
+    );
+}
+
+fn print_summary(s: &Session, file: &std::path::Path) {
+    let sum = s.summary();
+    println!(
+        "wear monitor on {}: {} samples, {} alarm(s); play {:.4} +/- {:.4}",
+        file.display(),
+        sum.samples,
+        sum.alarms.len(),
+        sum.play,
+        sum.play_se
+    );
+    match (sum.reference_play, sum.reference_play_se) {
+        (Some(p), Some(se)) => println!("  reference play {p:.4} +/- {se:.4}"),
+        _ => println!("  no reference yet: the record ended during the warm-up or the learning"),
+    }
+}
+
+/// Two panels against the file's time: the play with its band (alarms marked), and the statistic.
+fn draw(path: &std::path::Path, args: &MonitorArgs, p: &Decimated, s: &Session) -> Result<()> {
+    let t = p.series(0);
+    let against_time = |i: usize| -> Vec<(f64, f64)> {
+        t.iter().zip(p.series(i)).map(|(a, b)| (a.1, b.1)).collect()
+    };
+    let summary = s.summary();
+    let alarms: Vec<(f64, f64)> = summary
+        .alarms
+        .iter()
+        .map(|a| (a.time, a.play_after))
+        .collect();
+    let onsets: Vec<(f64, f64)> = summary
+        .alarms
+        .iter()
+        .map(|a| (a.onset, a.play_before))
+        .collect();
+    let span = (
+        t.first().map_or(0.0, |v| v.1),
+        t.last().map_or(1.0, |v| v.1),
+    );
+    let play = Panel {
+        title: "play c1 + c2 with its 95% band",
+        x_label: &args.time_col,
+        y_label: "play c1 + c2",
+        series: vec![
+            Series::line("play", against_time(1)),
+            Series::dashed("95% band", against_time(2)).color(1),
+            Series::dashed("", against_time(3)).color(1),
+            Series::points("alarm (play after)", alarms).color(3),
+            Series::points("onset (play before)", onsets).color(2),
+        ],
+        log_x: false,
+        log_y: false,
+    };
+    let stat = Panel {
+        title: "CUSUM statistic / threshold (alarm at 1)",
+        x_label: &args.time_col,
+        y_label: "statistic / threshold",
+        series: vec![
+            Series::line("statistic", against_time(4)),
+            Series::dashed("threshold", vec![(span.0, 1.0), (span.1, 1.0)]).color(3),
+        ],
+        log_x: false,
+        log_y: false,
+    };
+    let title = format!("wear monitor, {}", args.file.display());
+    grid_plot(path, &title, &[play, stat], 1)?;
+    Ok(())
+}

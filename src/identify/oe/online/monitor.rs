@@ -1,0 +1,673 @@
+//! Wear monitoring: a CUSUM test on the output-error residual against a reference model that raises an alarm
+//! when the play (c1 + c2) has grown, at a mean false-alarm period the user sets.
+//!
+//! # Reference
+//!
+//! The monitor drives a [`Refined`] estimator. [`MonitorConfig::learn`] samples after its recursion has
+//! started (after the refine warm-up), the refined estimate is frozen as the reference model theta0, with
+//! the noise variance `s^2` and the standard error of the play from the same recursion. A reference play
+//! given in [`MonitorConfig::reference_play`] rescales the learned gaps c1, c2 (ratio kept) to it.
+//!
+//! # The test
+//!
+//! From then on the reference model is simulated from the input alone (as the output-error model), with its
+//! sensitivities, and per sample k:
+//!
+//! ```text
+//! e(k)  = y(k) - w0(k)                                  residual against the reference model
+//! g(k)  = c1 dw0/dc1 + c2 dw0/dc2                       output change per unit of relative play growth
+//! h(k)  = sum_j b_j dw0/db_j                            output change per unit of relative linear gain
+//! gt(k) = g(k) - beta0 - beta1 h(k)                     g without its projection on (1, h) over the samples
+//!                                                        since the reference (least squares on 1, h)
+//! z(k)  = r gt(k) (2 e(k) - r gt(k)) / (2 sigma^2)      log-likelihood ratio of "the output moved by r gt"
+//! S(k)  = max(0, S(k-1) + z(k))                         CUSUM
+//! ```
+//!
+//! with r = [`MonitorConfig::wear_ratio`]. A play growth by r moves the output by about `r g(k)`. An output
+//! offset moves it by a constant, a change of the linear block's gain by a multiple of h (to first order:
+//! exactly, since h is the output's derivative with respect to that gain); neither is wear. `gt` is
+//! orthogonal to 1 and h over the record, so those changes add no drift to S, but they do add variance: a
+//! 10% gain change moves the output by several noise standard deviations, and S would wander up to the
+//! threshold. So the alarm needs a second test, on the samples of S's current excursion (since it was last
+//! 0): the generalised likelihood ratio of a play growth with an unknown offset and gain change over that
+//! window,
+//!
+//! ```text
+//! G = (e' . g')^2 / (2 sigma^2 g' . g')    if e' . g' > 0, else 0
+//! ```
+//!
+//! with e' and g' the residuals of e and g after least squares on (1, h) within the window (from running
+//! sums: no storage of the window). An offset or gain change is fitted away in e' whatever its size, a play
+//! growth is not. **The alarm comes when S >= H and G >= H.** `gt` depends on the input and the reference
+//! only, never on the measured output, so z(k) is exactly a log-likelihood ratio of two Gaussian hypotheses
+//! about y(k) given the past, which bounds the false alarms of S; the second test only removes alarms.
+//!
+//! # The threshold H
+//!
+//! For Gaussian increments with per-sample Kullback-Leibler distance `K = r^2 mean(gt^2) / (2 sigma^2)`
+//! Siegmund's approximation of the CUSUM's mean run length without change is
+//!
+//! ```text
+//! ARL0(H) = (exp(H + 1.166 d) - H - 1.166 d - 1) / K ,      d = sqrt(2 K)
+//! ```
+//!
+//! and H solves `ARL0(H) = alarm_period`. Two uncertainties of the reference are then covered: sigma^2 is
+//! the recursion's noise variance raised to its upper 97.5% bound `s^2 (1 + 2 sqrt(2 / n))` (n samples
+//! behind it), and an error eps of the reference play tilts the log-likelihood ratio so that the run length
+//! becomes `ARL0(H (1 - 2 eps / r))`; with eps at two standard errors of the play, H is divided by
+//! `1 - 4 se / (r play)` (at least 0.5). H is recomputed from the moments every [`REFRESH`] samples.
+//! The test starts [`MIN_SAMPLES`] samples after the reference (the projection needs a few samples).
+//!
+//! # Alarm
+//!
+//! At an alarm the onset is the first sample of S's current excursion (the usual change-time estimate), and
+//! the relative growth over it is the window's least-squares estimate `rho = e' . g' / g' . g'` (first
+//! order: a large step is underestimated, as the held phases of a wider gap are not linear in it), with
+//! standard error `sigma / sqrt(g' . g')`; the play after the change is `play0 (1 + rho)`. With
+//! [`MonitorConfig::follow`] the reference's gaps are then scaled by `1 + rho` (when rho > 0) and the test
+//! restarts, so that a further growth (or the rest of a large step) raises a further alarm; without it the
+//! test restarts on the same reference (what a false-alarm study needs). The latched alarm and the first
+//! onset stay.
+//!
+//! # Degenerate cases
+//!
+//! - The refine recursion never starts (the record does not excite the model): no reference, no test,
+//!   statistic 0, no alarm.
+//! - A reference play of 0 (no backlash): g = 0, K = 0, the statistic stays 0 and no alarm can come (nothing
+//!   to scale); [`Monitor::status`] says so.
+//! - Non-finite samples are skipped (as by the estimator).
+//! - Noise-free data: sigma^2 = 0 would make z infinite; sigma^2 is floored at `1e-12 max|y|^2`.
+//!
+//! No allocation per sample: the state is a few fixed-size arrays (the FMU's contract).
+
+use super::{Refined, Theta};
+use crate::identify::oe::SimState;
+use serde::{Deserialize, Serialize};
+
+/// Samples after the reference before the test runs.
+pub const MIN_SAMPLES: u64 = 200;
+/// Samples between two recomputations of the threshold.
+pub const REFRESH: u64 = 256;
+/// Siegmund's overshoot correction of the Gaussian CUSUM (0.583 per side).
+const OVERSHOOT: f64 = 1.166;
+/// Smallest tilt factor of the threshold for the reference's own error.
+const MIN_TILT: f64 = 0.5;
+
+/// The user's settings of the monitor.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MonitorConfig {
+    /// Relative growth of the play c1 + c2 to detect (0.1: 10%).
+    pub wear_ratio: f64,
+    /// Mean number of samples between false alarms.
+    pub alarm_period: f64,
+    /// Samples of the refine recursion before the reference is frozen.
+    pub learn: u64,
+    /// The reference play c1 + c2, when known; None: learned.
+    pub reference_play: Option<f64>,
+    /// After an alarm the reference play becomes the estimated new play (module docs).
+    pub follow: bool,
+}
+
+impl Default for MonitorConfig {
+    fn default() -> Self {
+        Self {
+            wear_ratio: 0.1,
+            alarm_period: 1e6,
+            learn: 2000,
+            reference_play: None,
+            follow: true,
+        }
+    }
+}
+
+/// A setting of the monitor that cannot work, in words.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum MonitorError {
+    #[error("wear_ratio = {0} is invalid: the relative play growth to detect must be in (0, 10]")]
+    WearRatio(f64),
+    #[error(
+        "alarm_period = {0} is invalid: the mean samples between false alarms must be at least 2"
+    )]
+    AlarmPeriod(f64),
+    #[error(
+        "reference play = {0} is invalid: it must be a finite number > 0 (or left to be learned)"
+    )]
+    ReferencePlay(f64),
+    #[error(transparent)]
+    Estimator(#[from] crate::plant::ParamError),
+}
+
+impl MonitorConfig {
+    pub fn validate(&self) -> Result<(), MonitorError> {
+        let r = self.wear_ratio;
+        if !(r.is_finite() && r > 0.0 && r <= 10.0) {
+            return Err(MonitorError::WearRatio(r));
+        }
+        let a = self.alarm_period;
+        if !(a.is_finite() && a >= 2.0) {
+            return Err(MonitorError::AlarmPeriod(a));
+        }
+        if let Some(p) = self.reference_play
+            && !(p.is_finite() && p > 0.0)
+        {
+            return Err(MonitorError::ReferencePlay(p));
+        }
+        Ok(())
+    }
+}
+
+/// One alarm: when, since when, and the play before and after with standard errors.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Alarm {
+    /// Sample index of the alarm and its time.
+    pub sample: u64,
+    pub time: f64,
+    /// Sample index and time the change is estimated to have begun.
+    pub onset_sample: u64,
+    pub onset: f64,
+    pub play_before: f64,
+    pub play_before_se: f64,
+    pub play_after: f64,
+    pub play_after_se: f64,
+}
+
+/// What the monitor is doing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Status {
+    /// Before the reference is frozen (refine warm-up and learning).
+    Learning,
+    /// The reference is frozen; the test runs (after [`MIN_SAMPLES`]).
+    Testing,
+    /// The reference has no play: nothing to detect.
+    NoPlay,
+}
+
+/// Running sums over the samples of the CUSUM's current excursion: n, e, h, h^2, g, g h, e h, e g, g^2.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+struct Window {
+    start: u64,
+    start_time: f64,
+    sums: [f64; 9],
+}
+
+impl Window {
+    fn add(&mut self, e: f64, h: f64, g: f64) {
+        let terms = [1.0, e, h, h * h, g, g * h, e * h, e * g, g * g];
+        for (s, t) in self.sums.iter_mut().zip(terms) {
+            *s += t;
+        }
+    }
+
+    /// (e' . g', g' . g') after least squares on (1, h) within the window (module docs).
+    fn projected(&self) -> (f64, f64) {
+        let [n, se, sh, shh, sg, sgh, seh, seg, sgg] = self.sums;
+        let det = n * shh - sh * sh;
+        if !well_posed(det, n * shh) {
+            // h constant within the window: the constant only.
+            return (seg - se * sg / n, sgg - sg * sg / n);
+        }
+        // [se, seh] M^-1 [sg, sgh] and [sg, sgh] M^-1 [sg, sgh], M = [[n, sh], [sh, shh]].
+        let quad = |a: [f64; 2], b: [f64; 2]| {
+            (a[0] * (shh * b[0] - sh * b[1]) + a[1] * (n * b[1] - sh * b[0])) / det
+        };
+        (
+            seg - quad([se, seh], [sg, sgh]),
+            (sgg - quad([sg, sgh], [sg, sgh])).max(0.0),
+        )
+    }
+}
+
+/// The CUSUM test against a frozen reference (module docs).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Detector {
+    theta: Theta,
+    sim: SimState,
+    sigma2: f64,
+    /// The play of the reference and its standard error.
+    play: f64,
+    play_se: f64,
+    /// Divisor of the threshold for the reference's error (module docs).
+    tilt: f64,
+    /// Samples since the reference (or the last re-reference).
+    n: u64,
+    /// Sums over those samples: h, h^2, g, h g, g^2.
+    sh: f64,
+    shh: f64,
+    sg: f64,
+    shg: f64,
+    sgg: f64,
+    threshold: f64,
+    stat: f64,
+    window: Window,
+}
+
+impl Detector {
+    fn reset_moments(&mut self) {
+        (self.n, self.sh, self.shh, self.sg, self.shg, self.sgg) = (0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        self.threshold = f64::INFINITY;
+        self.restart();
+    }
+
+    fn restart(&mut self) {
+        self.stat = 0.0;
+        self.window = Window::default();
+    }
+
+    /// (beta0, beta1) of the least-squares projection of g on (1, h) and the mean squared residual.
+    fn projection(&self) -> (f64, f64, f64) {
+        let n = self.n as f64;
+        let det = n * self.shh - self.sh * self.sh;
+        if !well_posed(det, n * self.shh) {
+            // h is constant (or zero): project on the constant only.
+            let b0 = self.sg / n;
+            return (b0, 0.0, (self.sgg / n - b0 * b0).max(0.0));
+        }
+        let b0 = (self.shh * self.sg - self.sh * self.shg) / det;
+        let b1 = (n * self.shg - self.sh * self.sg) / det;
+        let rss = self.sgg - b0 * self.sg - b1 * self.shg;
+        (b0, b1, (rss / n).max(0.0))
+    }
+
+    /// Threshold H of the module docs from the current moments.
+    fn refresh_threshold(&mut self, r: f64, period: f64) {
+        let (_, _, var) = self.projection();
+        let kl = r * r * var / (2.0 * self.sigma2);
+        self.threshold = threshold(kl, period) / self.tilt;
+    }
+
+    /// Sample k at time t; `lag(j)` = u(k - delay - j). Returns the alarm, if this sample raised one.
+    fn step(
+        &mut self,
+        cfg: &MonitorConfig,
+        (k, t): (u64, f64),
+        lag: impl Fn(usize) -> f64,
+        y: f64,
+    ) -> Option<Alarm> {
+        let (w, _) = self.sim.step::<true>(&self.theta, lag);
+        let th = &self.theta;
+        let (na, nb, p) = (th.na, th.nb, th.p());
+        let dw = &self.sim.dw;
+        let g = th.v[p - 2] * dw[p - 2] + th.v[p - 1] * dw[p - 1];
+        let h: f64 = (0..=nb).map(|j| th.v[na + j] * dw[na + j]).sum();
+        self.n += 1;
+        self.sh += h;
+        self.shh += h * h;
+        self.sg += g;
+        self.shg += h * g;
+        self.sgg += g * g;
+        if self.n < MIN_SAMPLES {
+            return None;
+        }
+        if self.n == MIN_SAMPLES || self.n.is_multiple_of(REFRESH) {
+            self.refresh_threshold(cfg.wear_ratio, cfg.alarm_period);
+        }
+        let (b0, b1, _) = self.projection();
+        let gt = g - b0 - b1 * h;
+        let e = y - w;
+        let r = cfg.wear_ratio;
+        let z = r * gt * (2.0 * e - r * gt) / (2.0 * self.sigma2);
+        if !z.is_finite() {
+            return None;
+        }
+        if self.stat + z <= 0.0 {
+            self.restart();
+            return None;
+        }
+        if self.stat == 0.0 {
+            (self.window.start, self.window.start_time) = (k, t);
+        }
+        self.stat += z;
+        self.window.add(e, h, g);
+        if self.stat < self.threshold {
+            return None;
+        }
+        let (eg, gg) = self.window.projected();
+        let glr = if eg > 0.0 && gg > 0.0 {
+            eg * eg / (2.0 * self.sigma2 * gg)
+        } else {
+            0.0
+        };
+        (glr >= self.threshold).then(|| self.alarm(cfg, k, t, eg / gg, gg))
+    }
+
+    /// The alarm at sample k with the window's growth `rho` and information `gg`, then the restart (and
+    /// re-reference with `follow`).
+    fn alarm(&mut self, cfg: &MonitorConfig, k: u64, t: f64, rho: f64, gg: f64) -> Alarm {
+        let se = (self.sigma2 / gg).sqrt();
+        let alarm = Alarm {
+            sample: k,
+            time: t,
+            onset_sample: self.window.start,
+            onset: self.window.start_time,
+            play_before: self.play,
+            play_before_se: self.play_se,
+            play_after: self.play * (1.0 + rho),
+            play_after_se: self.play * se,
+        };
+        if cfg.follow && rho > 0.0 && rho.is_finite() {
+            let p = self.theta.p();
+            self.theta.v[p - 2] *= 1.0 + rho;
+            self.theta.v[p - 1] *= 1.0 + rho;
+            (self.play, self.play_se) = (alarm.play_after, alarm.play_after_se);
+            self.reset_moments();
+        } else {
+            self.restart();
+        }
+        alarm
+    }
+}
+
+/// Whether the 2 x 2 normal equations on (1, h) with determinant `det` and scale `n sum h^2` are solvable
+/// (false for NaN).
+fn well_posed(det: f64, scale: f64) -> bool {
+    det > 1e-12 * scale.max(f64::MIN_POSITIVE)
+}
+
+/// H with `ARL0(H) = period` for per-sample distance `kl` (module docs); +inf when kl is 0 (no test).
+fn threshold(kl: f64, period: f64) -> f64 {
+    if !(kl > 0.0 && kl.is_finite()) {
+        return f64::INFINITY;
+    }
+    let target = period * kl;
+    // e^x - x - 1 = target: x = ln(1 + target + x), a contraction for x > 0.
+    let mut x = (1.0 + target).ln().max((2.0 * target).sqrt());
+    for _ in 0..50 {
+        x = (1.0 + target + x).ln();
+    }
+    let h = x - OVERSHOOT * (2.0 * kl).sqrt();
+    h.max(0.5 * x)
+}
+
+/// The wear monitor over a [`Refined`] estimator (module docs). Clone and serde-(de)serialisable (the FMU
+/// state); a deserialised one must pass [`Monitor::check`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Monitor {
+    cfg: MonitorConfig,
+    /// Sample count at which the reference is frozen (set when the recursion starts).
+    freeze_at: Option<u64>,
+    det: Option<Detector>,
+    first: Option<Alarm>,
+    alarms: u64,
+    y_max: f64,
+}
+
+impl Monitor {
+    pub fn new(cfg: MonitorConfig) -> Result<Self, MonitorError> {
+        cfg.validate()?;
+        Ok(Self {
+            cfg,
+            freeze_at: None,
+            det: None,
+            first: None,
+            alarms: 0,
+            y_max: 0.0,
+        })
+    }
+
+    pub fn config(&self) -> &MonitorConfig {
+        &self.cfg
+    }
+
+    /// Sample (u, y) at time t through the estimator and the test: the estimator's step result and the alarm
+    /// this sample raised, if any. No allocation.
+    pub fn update(
+        &mut self,
+        est: &mut Refined,
+        t: f64,
+        u: f64,
+        y: f64,
+    ) -> (crate::identify::mrgia::StepResult, Option<Alarm>) {
+        if !(u.is_finite() && y.is_finite() && t.is_finite()) {
+            return (est.update(u, y), None);
+        }
+        let k = est.samples;
+        let alarm = self.det.as_mut().and_then(|d| {
+            let delay = d.theta.delay;
+            let ring = &est.u_ring;
+            let lag = |j: usize| {
+                let l = (delay + j) as u64;
+                if k >= l {
+                    ring[((k - l) as usize) & (super::RING - 1)]
+                } else {
+                    0.0
+                }
+            };
+            d.step(&self.cfg, (k, t), lag, y)
+        });
+        self.y_max = self.y_max.max(y.abs());
+        let r = est.update(u, y);
+        if let Some(a) = alarm {
+            self.alarms += 1;
+            self.first.get_or_insert(a);
+        }
+        if self.det.is_none() && est.refining() {
+            let at = *self.freeze_at.get_or_insert(est.samples + self.cfg.learn);
+            if est.samples >= at {
+                self.det = self.freeze(est);
+            }
+        }
+        (r, alarm)
+    }
+
+    /// The reference from the running recursion (module docs); None without a recursion.
+    fn freeze(&self, est: &Refined) -> Option<Detector> {
+        let rec = est.rec.as_ref()?;
+        let mut theta = rec.theta;
+        let p = theta.p();
+        let (mut play, mut play_se) = play_of(est);
+        if let Some(given) = self.cfg.reference_play
+            && play > 0.0
+        {
+            let f = given / play;
+            theta.v[p - 2] *= f;
+            theta.v[p - 1] *= f;
+            (play, play_se) = (given, 0.0);
+        }
+        let n = rec.w1.max(1.0);
+        let floor = 1e-12 * self.y_max * self.y_max;
+        let inflate = 1.0 + 2.0 * (2.0 / n).sqrt();
+        let sigma2 = (rec.noise_variance() * inflate).max(floor);
+        let rel = if play > 0.0 { play_se / play } else { 0.0 };
+        let tilt = (1.0 - 4.0 * rel / self.cfg.wear_ratio).max(MIN_TILT);
+        let mut d = Detector {
+            theta,
+            sim: rec.sim,
+            sigma2: if sigma2 > 0.0 {
+                sigma2
+            } else {
+                f64::MIN_POSITIVE
+            },
+            play,
+            play_se,
+            tilt,
+            n: 0,
+            sh: 0.0,
+            shh: 0.0,
+            sg: 0.0,
+            shg: 0.0,
+            sgg: 0.0,
+            threshold: f64::INFINITY,
+            stat: 0.0,
+            window: Window::default(),
+        };
+        d.reset_moments();
+        Some(d)
+    }
+
+    /// Restart the test on the same reference, as after an alarm without `follow` (the alarm stays latched).
+    pub fn restart(&mut self) {
+        if let Some(d) = &mut self.det {
+            d.restart();
+        }
+    }
+
+    pub fn status(&self) -> Status {
+        match &self.det {
+            None => Status::Learning,
+            Some(d) if d.play <= 0.0 => Status::NoPlay,
+            Some(_) => Status::Testing,
+        }
+    }
+
+    /// The CUSUM statistic divided by its threshold: an alarm comes when it reaches 1 (0 while learning).
+    pub fn statistic(&self) -> f64 {
+        match &self.det {
+            Some(d) if d.threshold.is_finite() && d.threshold > 0.0 => d.stat / d.threshold,
+            _ => 0.0,
+        }
+    }
+
+    /// The threshold H in log-likelihood units (None while learning or before the test runs).
+    pub fn threshold(&self) -> Option<f64> {
+        self.det
+            .as_ref()
+            .map(|d| d.threshold)
+            .filter(|h| h.is_finite())
+    }
+
+    /// The reference play (after any re-reference) and its standard error; None while learning.
+    pub fn reference(&self) -> Option<(f64, f64)> {
+        self.det.as_ref().map(|d| (d.play, d.play_se))
+    }
+
+    /// The noise standard deviation the test uses (None while learning).
+    pub fn sigma(&self) -> Option<f64> {
+        self.det.as_ref().map(|d| d.sigma2.sqrt())
+    }
+
+    /// The first alarm (latched).
+    pub fn first_alarm(&self) -> Option<&Alarm> {
+        self.first.as_ref()
+    }
+
+    /// Alarms so far.
+    pub fn alarms(&self) -> u64 {
+        self.alarms
+    }
+
+    /// Consistency of a deserialised state.
+    pub fn check(&self) -> Result<(), String> {
+        self.cfg.validate().map_err(|e| e.to_string())?;
+        let Some(d) = &self.det else { return Ok(()) };
+        let vals = [
+            d.sigma2, d.play, d.play_se, d.tilt, d.sh, d.shh, d.sg, d.shg, d.sgg, d.stat,
+        ];
+        let ok = vals.iter().chain(&d.window.sums).all(|v| v.is_finite())
+            && d.sigma2 > 0.0
+            && d.stat >= 0.0
+            && d.tilt > 0.0
+            && d.sim.pos < 4
+            && d.theta.v.iter().all(|v| v.is_finite());
+        if ok {
+            Ok(())
+        } else {
+            Err("wear monitor state: inconsistent test".into())
+        }
+    }
+}
+
+/// The play c1 + c2 of the estimator's current estimate and its standard error (0 while unknown). No
+/// allocation.
+pub fn play_of(est: &Refined) -> (f64, f64) {
+    let v = est.values();
+    let p = est.config().n_params();
+    let play = v[p - 2] + v[p - 1];
+    let se = match &est.rec {
+        Some(r) => {
+            let (i, j) = (p - 2, p - 1);
+            let var = r.p[i][i] + r.p[j][j] + 2.0 * r.p[i][j];
+            (r.noise_variance() * var * r.w2 / r.w1).max(0.0).sqrt()
+        }
+        None => 0.0,
+    };
+    (play, se)
+}
+
+/// A monitored record, sample by sample: the estimator, the monitor and every alarm (the memory grows with
+/// the alarms only). What `backlash monitor` and `backlash_fmu.monitor` run.
+#[derive(Debug, Clone)]
+pub struct Session {
+    est: Refined,
+    mon: Monitor,
+    alarms: Vec<Alarm>,
+}
+
+/// The result of a monitored record (`backlash monitor --json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    pub alarms: Vec<Alarm>,
+    /// The estimator's play c1 + c2 at the end and its standard error (0 while unknown).
+    pub play: f64,
+    pub play_se: f64,
+    pub samples: u64,
+    pub status: Status,
+    /// The reference play (after any re-reference) and its standard error; None while learning.
+    pub reference_play: Option<f64>,
+    pub reference_play_se: Option<f64>,
+    /// The noise standard deviation and the threshold (log-likelihood units) the test uses.
+    pub sigma: Option<f64>,
+    pub threshold: Option<f64>,
+    pub wear_ratio: f64,
+    pub alarm_period: f64,
+    pub learn: u64,
+    /// The estimator's final estimate and standard errors.
+    pub estimate: crate::identify::mrgia::Estimate,
+    pub std_err: Option<crate::identify::oe::StdErr>,
+}
+
+impl Session {
+    /// The refined estimator with `est` (its warm-up setting) and the monitor with `cfg`.
+    pub fn new(
+        est: crate::identify::mrgia::MrgiaConfig,
+        cfg: MonitorConfig,
+    ) -> Result<Self, MonitorError> {
+        Ok(Self {
+            est: Refined::new(est)?,
+            mon: Monitor::new(cfg)?,
+            alarms: Vec::new(),
+        })
+    }
+
+    /// Sample (u, y) at time t; the alarm it raised.
+    pub fn push(&mut self, t: f64, u: f64, y: f64) -> Option<Alarm> {
+        let (_, a) = self.mon.update(&mut self.est, t, u, y);
+        if let Some(a) = a {
+            self.alarms.push(a);
+        }
+        a
+    }
+
+    pub fn estimator(&self) -> &Refined {
+        &self.est
+    }
+
+    pub fn monitor(&self) -> &Monitor {
+        &self.mon
+    }
+
+    pub fn summary(&self) -> Summary {
+        let (play, play_se) = play_of(&self.est);
+        let reference = self.mon.reference();
+        let c = self.mon.config();
+        Summary {
+            alarms: self.alarms.clone(),
+            play,
+            play_se,
+            samples: self.est.samples(),
+            status: self.mon.status(),
+            reference_play: reference.map(|r| r.0),
+            reference_play_se: reference.map(|r| r.1),
+            sigma: self.mon.sigma(),
+            threshold: self.mon.threshold(),
+            wear_ratio: c.wear_ratio,
+            alarm_period: c.alarm_period,
+            learn: c.learn,
+            estimate: self.est.estimate(),
+            std_err: self.est.std_err(),
+        }
+    }
+}
+
+pub mod study;
+#[cfg(test)]
+mod tests;
