@@ -2,7 +2,7 @@
 """The fleet on simulated records with known effects: wall time with 1 and 2 Dask workers and the fraction
 of the effects that the diagnosis names.
 
-Records: BacklashPlant.fmu (through FMPy) with paper 000's plant, the paper's input (white, uniform,
+Records: BacklashPlant.fmu (stepped through FMPy's FMU2Slave) with paper 000's plant, the paper's input (white, uniform,
 variance 1.93, Ts = 0.01 s), noise std 0.04, and one test-bench effect per record, cycling through `EFFECTS`
 (magnitudes of tests/python/test_plant_effects.py, inside the ranges of the diagnose bench) and a clean
 record; every record has its own input and noise seed. The structure is left to the diagnosis (so the
@@ -29,7 +29,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 TS = 0.01
 EFFECTS = {
     "clean": {},
-    "gap-drift": {"c1_rate": 0.3 / 30.0, "c2_rate": 0.6 / 30.0},
+    "gap-drift": {},  # rates set per record length in make_records: the gaps grow by 60 % over the record
     "curved-borders": {"curve_up2": 0.1, "curve_up3": 0.04, "curve_down2": -0.12, "curve_down3": 0.05},
     "coloured-noise": {"noise_phi": 0.8, "noise_std": 0.1},
     "saturation": {"saturation": 1, "sat_lo": -1.2, "sat_hi": 1.6},
@@ -42,9 +42,11 @@ EFFECTS = {
 
 
 def make_records(folder, count, samples, plant_fmu):
-    """Write `count` records into `folder`; returns {file: known effect}."""
-    from fmpy import simulate_fmu
+    """Write `count` records into `folder` (the plant FMU stepped directly, one instance per record); returns
+    {file: known effect}."""
+    from backlash_fmu.study import _Instance, load_fmu
 
+    fmu = load_fmu(plant_fmu)
     folder.mkdir(parents=True, exist_ok=True)
     names = list(EFFECTS)
     known = {}
@@ -56,14 +58,22 @@ def make_records(folder, count, samples, plant_fmu):
             continue
         a = np.sqrt(3 * 1.93)
         u = np.random.default_rng(1000 + i).uniform(-a, a, samples)
-        t = np.arange(samples) * TS
-        table = np.array(list(zip(t, u)), dtype=[("time", np.float64), ("u", np.float64)])
         start = {"Ts": TS, "noise_std": 0.04, "noise_seed": 1 + i, **EFFECTS[effect]}
-        res = simulate_fmu(plant_fmu, stop_time=(samples - 1) * TS, output_interval=TS, start_values=start,
-                           input=table, output=["y"])
+        if effect == "gap-drift":
+            duration = samples * TS
+            start.update(c1_rate=0.3 / duration, c2_rate=0.6 / duration)
+        plant = _Instance(fmu, "plant", start)
+        vr_u, vr_y = plant.vr("u"), plant.vr("y")
+        y = np.empty(samples)
+        for k in range(samples):
+            # The output at t_k is sample k's; u(k) drives the step from t_k.
+            y[k] = plant.fmu.getReal(vr_y)[0]
+            plant.fmu.setReal(vr_u, [float(u[k])])
+            plant.fmu.doStep(k * TS, TS)
+        plant.free()
+        t = np.arange(samples) * TS
         tmp = path.with_suffix(".tmp")
-        np.savetxt(tmp, np.column_stack([t, u, res["y"]]), delimiter=",", header="time,u,y", comments="",
-                   fmt="%.17g")
+        np.savetxt(tmp, np.column_stack([t, u, y]), delimiter=",", header="time,u,y", comments="", fmt="%.17g")
         tmp.rename(path)
     return known
 
