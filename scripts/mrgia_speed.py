@@ -1,8 +1,14 @@
 #!/usr/bin/env python3
 """`backlash identify mrgia` against a straightforward NumPy MRGIA (tests/python/mrgia_reference.py) on a
-200,000-sample record of the paper 000 example (SNR 43).
+200,000-sample record of the paper 000 example (SNR 43), and against reading the same file with polars.
 
     .venv/bin/python scripts/mrgia_speed.py [--samples 200000] [--repeats 5] [--numpy-samples 20000]
+    .venv/bin/python scripts/mrgia_speed.py --polars --repeats 15 [--other-cli OLD/backlash]
+
+--polars (needs `pip install polars`): polars' read of the same file on one thread (POLARS_MAX_THREADS=1, set
+before polars is imported, in a child process that times the read alone, without its own start), alternating
+run by run with the CLI so that both see the same load; the ratio CLI / polars is what the reader is held to.
+--other-cli: another build of `backlash` (e.g. before a change) timed the same way in the same run.
 
 The CLI is timed end to end as a user runs it (process start, CSV parsing, the estimator, JSON output), median
 of --repeats runs. The NumPy implementation (one Python iteration per sample on NumPy arrays) is timed on the
@@ -48,6 +54,8 @@ def main():
     ap.add_argument("--numpy-samples", type=int, default=20_000)
     ap.add_argument("--cli", default=os.environ.get("BACKLASH_CLI", str(ROOT / "target" / "release" / "backlash")))
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--polars", action="store_true", help="also time polars' one-thread read of the file")
+    ap.add_argument("--other-cli", help="also time this build of backlash, alternating with the first")
     args = ap.parse_args()
     cli = pathlib.Path(args.cli)
     if not cli.exists():
@@ -66,12 +74,18 @@ def main():
                    header="time,u,y", comments="", fmt="%.17g")
         size_mb = csv.stat().st_size / 1e6
         cmd = [str(cli), "identify", "mrgia", str(csv), "--na", "2", "--nb", "0", "--delay", "1", "--json"]
-        times = []
+        times, other_times, polars_times = [], [], []
         out = None
         for _ in range(args.repeats):
             t0 = time.perf_counter()
             out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
             times.append(time.perf_counter() - t0)
+            if args.other_cli:
+                t0 = time.perf_counter()
+                subprocess.run([args.other_cli, *cmd[1:]], check=True, capture_output=True, text=True)
+                other_times.append(time.perf_counter() - t0)
+            if args.polars:
+                polars_times.append(_polars_read(csv))
         cli_t = statistics.median(times)
         got = json.loads(out)
         # The same CLI on the first m samples, to compare estimates with the NumPy run.
@@ -99,6 +113,37 @@ def main():
     print(f"NumPy {n} samples: {np_t:.2f} s{extra}; {np_t / n * 1e6:.1f} us/sample")
     print(f"estimates on the first {m} samples, CLI vs NumPy: max relative difference {diff:.1e}")
     print(f"ratio NumPy / CLI: {np_t / cli_t:.0f}x")
+    load = os.getloadavg()
+    if args.other_cli:
+        o = statistics.median(other_times)
+        print(f"other CLI {args.other_cli}: median {o * 1e3:.1f} ms (min {min(other_times) * 1e3:.1f}); "
+              f"this one / other: {cli_t / o:.2f}")
+    if args.polars:
+        p = statistics.median(polars_times)
+        print(f"polars read_csv, one thread: median {p * 1e3:.1f} ms (min {min(polars_times) * 1e3:.1f}); "
+              f"CLI end to end / polars read: {cli_t / p:.2f}x"
+              + (f"; other CLI / polars read: {statistics.median(other_times) / p:.2f}x" if args.other_cli else ""))
+    print(f"load average (1, 5, 15 min) at the end: {load[0]:.1f}, {load[1]:.1f}, {load[2]:.1f} on {os.cpu_count()} cores")
+
+
+_POLARS = """
+import os, sys, time
+os.environ["POLARS_MAX_THREADS"] = "1"
+import polars as pl
+t0 = time.perf_counter()
+df = pl.read_csv(sys.argv[1])
+t = time.perf_counter() - t0
+assert df.height > 0
+print(t)
+"""
+
+
+def _polars_read(csv):
+    """Seconds polars takes to read `csv` on one thread (timed inside a fresh process)."""
+    env = {**os.environ, "POLARS_MAX_THREADS": "1"}
+    done = subprocess.run([sys.executable, "-c", _POLARS, str(csv)], check=True, capture_output=True, text=True,
+                          env=env)
+    return float(done.stdout)
 
 
 if __name__ == "__main__":

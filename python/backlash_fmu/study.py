@@ -31,6 +31,7 @@ import zipfile
 
 import numpy as np
 
+from ._csv import cell as _fmt
 from .cosim import paper_input, process_callbacks
 
 NOISE_SEED_OFFSET = 1_000_000  # the plant FMU's noise_seed is an FMI Integer (int32)
@@ -188,14 +189,6 @@ def tidy(rows, grid):
     """Rows in (plant, SNR, seed, N, method, parameter) order, whatever order the cells finished in."""
     order = {(p, r): i for i, (p, r) in enumerate((p, r) for p in grid["plants"] for r in grid["snrs"])}
     return sorted(rows, key=lambda row: _sort_key(row, order))
-
-
-def _fmt(v):
-    if v is None:
-        return ""
-    if isinstance(v, float):
-        return repr(v)
-    return str(v)
 
 
 def to_csv(rows):

@@ -5,8 +5,8 @@
 //! generated variable table), and the values are set on the FMU's own model, which builds the plant: a
 //! parameter added to the FMU is known here without a change, and a value means what it means in the FMU.
 
-use crate::fmi2::Model;
-use crate::fmi2::vars::{Causality, Start, Value, VarInfo, VarType};
+use crate::fmi::Model;
+use crate::fmi::vars::{Causality, Start, Value, VarInfo, VarType};
 use crate::fmus::plant::PlantFmu;
 use crate::plant::{MAX_ORDER, Plant, PlantOutput, PlantParams};
 

@@ -1,10 +1,11 @@
 //! `backlash monitor`: the wear monitor of MrgiaEstimator.fmu on a data file, streamed.
 
-use crate::identify::Decimated;
-use anyhow::{Context, Result, bail};
+use super::common::RecordArgs;
+use super::identify::Decimated;
+use anyhow::{Context, Result};
 use backlash::identify::mrgia::MrgiaConfig;
 use backlash::identify::oe::online::monitor::{Alarm, MonitorConfig, Session, play_of};
-use backlash::io::{ReadAhead, RowReader};
+use backlash::io::ReadAhead;
 use backlash::report::plot::{Panel, Series, grid_plot};
 use serde_json::json;
 use std::path::PathBuf;
@@ -37,39 +38,14 @@ pub struct MonitorArgs {
     /// The estimator's warm-up with the project's recommended MRGIA setting instead of the paper's.
     #[arg(long)]
     pub recommended: bool,
-    /// Name of the time column.
-    #[arg(long, default_value = "time")]
-    pub time_col: String,
-    /// Block-average decimation by N before monitoring (1: none).
-    #[arg(long, default_value_t = 1)]
-    pub decimate: usize,
+    #[command(flatten)]
+    pub record: RecordArgs,
     /// Print one JSON object on stdout and nothing else there.
     #[arg(long)]
     pub json: bool,
     /// Write a PNG of the play with its 95% band and the statistic against time, with the alarms.
     #[arg(long)]
     pub plot: Option<PathBuf>,
-}
-
-/// Block means of (time, u, y) over `factor` rows, one row at a time.
-struct BlockMean {
-    factor: usize,
-    sum: [f64; 3],
-    n: usize,
-}
-
-impl BlockMean {
-    fn push(&mut self, row: &[f64]) -> Option<[f64; 3]> {
-        for (s, v) in self.sum.iter_mut().zip(row) {
-            *s += v;
-        }
-        self.n += 1;
-        (self.n == self.factor).then(|| {
-            let m = self.sum.map(|s| s / self.factor as f64);
-            (self.sum, self.n) = ([0.0; 3], 0);
-            m
-        })
-    }
 }
 
 /// Plotted per sample: time, play, play - 1.96 se, play + 1.96 se, statistic / threshold.
@@ -81,9 +57,6 @@ fn plotted(t: f64, s: &Session) -> [f64; PLOTTED] {
 }
 
 pub fn run(args: &MonitorArgs) -> Result<()> {
-    if args.decimate == 0 {
-        bail!("--decimate must be at least 1");
-    }
     let cfg = MonitorConfig {
         wear_ratio: args.wear_ratio,
         alarm_period: args.alarm_period,
@@ -98,18 +71,15 @@ pub fn run(args: &MonitorArgs) -> Result<()> {
         MrgiaConfig::paper(na, nb, d)
     };
     let mut session = Session::new(est, cfg).context("invalid monitor setting")?;
-    let rows = RowReader::open(&args.file, &[args.time_col.as_str(), "u", "y"])?;
-    let mut block = BlockMean {
-        factor: args.decimate,
-        sum: [0.0; 3],
-        n: 0,
-    };
+    let options = args.record.options();
+    let (rows, cols) = options.open(&args.file, true)?;
+    let mut block = options.block(3);
     let mut plot = args.plot.as_ref().map(|_| Decimated::new(PLOTTED));
     let (mut k, mut last_t) = (0u64, f64::NAN);
     let mut rows = ReadAhead::spawn(rows);
     while let Some(batch) = rows.next_batch()? {
         for row in batch.values.chunks_exact(3) {
-            let Some([t, u, y]) = block.push(row) else {
+            let Some(&[t, u, y]) = block.push(row) else {
                 continue;
             };
             if let Some(a) = session.push(t, u, y)
@@ -131,11 +101,11 @@ pub fn run(args: &MonitorArgs) -> Result<()> {
         && k > 0
     {
         p.finish(k - 1, &plotted(last_t, &session));
-        draw(path, args, &p, &session)?;
+        draw(path, args, &cols.names[0], &p, &session)?;
     }
     let mut out = serde_json::to_value(session.summary())?;
     out["file"] = json!(args.file.display().to_string());
-    out["decimate"] = json!(args.decimate);
+    out["decimate"] = json!(args.record.decimate);
     if args.json {
         println!("{out}");
     } else {
@@ -175,7 +145,13 @@ fn print_summary(s: &Session, file: &std::path::Path) {
 }
 
 /// Two panels against the file's time: the play with its band (alarms marked), and the statistic.
-fn draw(path: &std::path::Path, args: &MonitorArgs, p: &Decimated, s: &Session) -> Result<()> {
+fn draw(
+    path: &std::path::Path,
+    args: &MonitorArgs,
+    time_label: &str,
+    p: &Decimated,
+    s: &Session,
+) -> Result<()> {
     let t = p.series(0);
     let against_time = |i: usize| -> Vec<(f64, f64)> {
         t.iter().zip(p.series(i)).map(|(a, b)| (a.1, b.1)).collect()
@@ -197,7 +173,7 @@ fn draw(path: &std::path::Path, args: &MonitorArgs, p: &Decimated, s: &Session) 
     );
     let play = Panel {
         title: "play c1 + c2 with its 95% band",
-        x_label: &args.time_col,
+        x_label: time_label,
         y_label: "play c1 + c2",
         series: vec![
             Series::line("play", against_time(1)),
@@ -211,7 +187,7 @@ fn draw(path: &std::path::Path, args: &MonitorArgs, p: &Decimated, s: &Session) 
     };
     let stat = Panel {
         title: "CUSUM statistic / threshold (alarm at 1)",
-        x_label: &args.time_col,
+        x_label: time_label,
         y_label: "statistic / threshold",
         series: vec![
             Series::line("statistic", against_time(4)),

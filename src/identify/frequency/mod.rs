@@ -55,6 +55,7 @@ pub mod analysis;
 pub mod experiment;
 mod fit;
 mod fold;
+mod moments;
 pub mod window;
 
 #[cfg(test)]

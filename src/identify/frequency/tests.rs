@@ -483,3 +483,25 @@ fn inconsistent_settings_are_refused() {
         }
     ));
 }
+
+#[test]
+fn the_fast_phase_grid_gives_the_exact_grids_estimates() {
+    // Every case, noise-free and noisy, commensurate and not, at its degree and at degree 6: the estimate
+    // (LS and SLS paths, the constant-stage candidates) is the exact grid's, bit for bit.
+    let exact_grid = |on: bool| super::fit::EXACT_GRID.set(on);
+    for (name, tr, omega, amplitude, n, _) in cases() {
+        for (noise, spp) in [(0.0, 200.0), (0.01, 200.0), (0.02, 173.3)] {
+            let e = Experiment {
+                spp,
+                ..Experiment::new(omega, amplitude, 10.0, noise, 5)
+            };
+            for degree in [n, 6] {
+                exact_grid(true);
+                let exact = run(&tr, &e, degree);
+                exact_grid(false);
+                let fast = run(&tr, &e, degree);
+                assert_eq!(fast, exact, "{name}, noise {noise}, degree {degree}");
+            }
+        }
+    }
+}
