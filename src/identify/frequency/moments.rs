@@ -150,7 +150,7 @@ impl Moments {
             for l in 0..=k {
                 let s = g[k][l] - (0..l).map(|i| g[k][i] * g[l][i]).sum::<f64>();
                 if l == k {
-                    if !(s > 0.0) {
+                    if s.is_nan() || s <= 0.0 {
                         return None;
                     }
                     (dmin, dmax) = (dmin.min(s), dmax.max(s));
