@@ -175,7 +175,7 @@ pub(crate) mod tests {
     fn report_of(s: &Scenario, d: &Diagnosis, tag: &str) -> (std::path::PathBuf, String) {
         let dir = std::env::temp_dir().join(format!("backlash-{tag}-{}", std::process::id()));
         let t: Vec<f64> = (0..s.u.len()).map(|k| k as f64 * 0.01).collect();
-        let input = crate::diagnose::report::markdown::ReportInput {
+        let input = crate::diagnose::report::ReportInput {
             columns: ["time", "u", "y"],
             file: "bench",
             t: &t,
@@ -185,7 +185,7 @@ pub(crate) mod tests {
             command: None,
             validations: &[],
         };
-        let md = crate::diagnose::report::markdown::write_report(&dir, d, &input).unwrap();
+        let md = crate::diagnose::report::write_report(&dir, d, &input).unwrap();
         let text = std::fs::read_to_string(&md).unwrap();
         (dir, text)
     }

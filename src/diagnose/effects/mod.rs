@@ -13,6 +13,7 @@
 //! | `quantization` | the sensor rounds to offset + q Z; the model gives the expected reading for Gaussian noise of std sigma (at most 2 q) before the rounding | q and offset (from the value lattice), sigma (fitted) | value lattice |
 //! | `friction` | elasto-plastic Coulomb element with the backlash, slip levels F+ and -F-, *series* (after the backlash output) or *contact* (the play inside the element's spring); both fitted, the better kept | F+, F-, form (k_e = 1: the stiffness is carried by b, as m1 = 1) | extremes, since reversal, by mode, Billings, drift, Ljung-Box |
 //! | `direction-dependent` | the linear block has a second set of coefficients for while its output falls: x(k) = x_rise(k) unless that falls below x(k-1), then x_fall(k) | a_fall, b_fall (same orders) | by mode, since reversal, Billings, Ljung-Box |
+//! | `dead-zone` | the linear block sees 0 while \|u\| <= width, u - width sign(u) beyond | the width | Billings, against x_hat, extremes, cross-correlation, Ljung-Box |
 //!
 //! ## What an effect says about itself
 //!
@@ -33,6 +34,7 @@
 
 pub mod coloured_noise;
 pub mod curved_borders;
+pub mod dead_zone;
 pub mod direction_dependent;
 pub mod extra_delay;
 pub mod figure;
@@ -54,7 +56,7 @@ use figure::Figure;
 use rig::{Draw, Rig};
 
 /// Every effect of the catalogue, in the contract's order. Adding an effect is a module and a line here.
-pub static CATALOGUE: [&dyn Effect; 10] = [
+pub static CATALOGUE: [&dyn Effect; 11] = [
     &gap_drift::GapDrift,
     &curved_borders::CurvedBorders,
     &extra_delay::ExtraDelay,
@@ -65,6 +67,7 @@ pub static CATALOGUE: [&dyn Effect; 10] = [
     &quantization::Quantization,
     &friction::Friction,
     &direction_dependent::DirectionDependent,
+    &dead_zone::DeadZone,
 ];
 
 /// One entry of the catalogue. Everything the diagnosis does with an effect goes through this trait.

@@ -1,7 +1,11 @@
-//! What a diagnosis tells: the Markdown report with its figures ([`markdown`]) and the contract's typed JSON
+//! What a diagnosis tells: the Markdown report ([`markdown`]) with its figures ([`figures`]; the evidence
+//! figure is the chosen effect's own), what it is written from ([`input`]), and the contract's typed JSON
 //! object ([`output`]).
 
+pub mod figures;
+pub mod input;
 pub mod markdown;
 pub mod output;
 
-pub use markdown::{ReportError, ReportInput, Validation, write_report};
+pub use input::{ReportError, ReportInput, Validation};
+pub use markdown::write_report;
