@@ -272,7 +272,9 @@ def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None
             "e": rows[:, -1],
             "updating": np.array(upd, dtype=bool),
             "names": list(ESTIMATE_NAMES),
-            "outputs": {name: np.array(v) for name, v in extra_rows.items()},
+            # Booleans as bool arrays (FMPy returns them as ints, whose ~ would be -1 and -2, not a mask).
+            "outputs": {name: np.array(v, dtype=bool if extra[name][1] else float)
+                        for name, v in extra_rows.items()},
         }
     finally:
         for s in (est, plant):
