@@ -60,9 +60,13 @@ def test_defaults_are_the_papers_settings(estimator_fmu):
     assert float(start["Sigma0"]) == 1.0
     assert start["recommended"] in ("false", False)
     assert start["refine"] in ("false", False)
+    assert start["monitor"] in ("false", False)
+    assert float(start["wear_ratio"]) == 0.1
+    assert float(start["alarm_period"]) == 1e6
     outputs = {v.name for v in md.modelVariables if v.causality == "output"}
     estimates = {"a1", "a2", "a3", "a4", "b0", "b1", "b2", "b3", "b4", "m2", "c1", "c2"}
-    assert outputs == estimates | {f"{n}_se" for n in estimates} | {"y_hat", "e", "updating"}
+    wear = {"play", "play_se", "wear_statistic", "wear_alarm", "wear_onset"}
+    assert outputs == estimates | {f"{n}_se" for n in estimates} | {"y_hat", "e", "updating"} | wear
 
 
 def test_fmu_state_mid_run_is_bit_identical(estimator_fmu, unzipped):
