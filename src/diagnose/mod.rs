@@ -5,7 +5,7 @@
 //! - [`fit`]: models, problems, starts, structure selection and the Levenberg-Marquardt fitter.
 //! - [`residual`]: the residual tests and the statistics they and the decision use.
 //! - [`report`]: the Markdown report with its figures and the typed JSON output.
-//! - [`bench`]: simulated test-bench records with known effects (tests and measurements).
+//! - [`bench`](mod@bench): simulated test-bench records with known effects (tests and measurements).
 //! - [`record`]: decimation of densely sampled records.
 //!
 //! Rooms depend one way: `residual` and `fit` know no effect; `effects` uses them; `search` uses the

@@ -89,7 +89,7 @@ impl Effect for Friction {
         ]
     }
 
-    /// A grid for both arrangements of the play ([`Grid`]), each from templates slipping at the extremes of
+    /// A grid for both arrangements of the play (`Grid`), each from templates slipping at the extremes of
     /// the output; an arrangement the current model rules out is not offered.
     fn plan(&self, cx: &StartContext) -> Option<Plan> {
         let grid = Grid::new(cx)?;

@@ -452,7 +452,7 @@ impl EffectModel {
     /// rest at the input level `rest` (see [`Rest`]).
     /// Returns `false` if the model is not valid: m2 <= 0 or non-finite parameters, an unstable linear block,
     /// `|x| > limit`, an extension its element refuses, or a backlash that visits an inverted memory zone on
-    /// these samples (see [`Runner::moves_with_x`]).
+    /// these samples (see `Runner::moves_with_x`).
     pub fn simulate_into(
         &self,
         u: &[f64],

@@ -186,7 +186,7 @@ pub struct Found {
     pub chosen: Option<usize>,
 }
 
-/// The result of [`diagnose`].
+/// The result of [`diagnose`](super::engine::diagnose).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Diagnosis {
     pub config: DiagnoseConfig,

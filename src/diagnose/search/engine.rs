@@ -21,7 +21,7 @@
 //!    Whether the data support the backlash is said plainly: its play c1 + c2 with a standard error from the
 //!    fit's information matrix, and its held-out error against the linear model's.
 //! 4. **Test the residual** e = y - y_model **of the fit part** with the tests of [`crate::diagnose::residual`].
-//!    Each test that rejects points to the effects of [`EffectId::pointing_tests`]; those are the
+//!    Each test that rejects points to the effects of [`EffectId::pointing_tests`](crate::diagnose::id::EffectId::pointing_tests); those are the
 //!    **candidates**. A residual spectrum peak at a frequency the input carries
 //!    ([`crate::diagnose::residual::statistics::input_line_ratio`] above [`crate::diagnose::residual::statistics::INPUT_LINE_RATIO`]) is model error
 //!    driven by the input, not a disturbance: it then does not make `periodic-disturbance` a candidate.
