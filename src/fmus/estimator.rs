@@ -106,8 +106,10 @@ impl EstimatorFmu {
         match &self.est {
             Some(Running::Refined(r)) => play_of(r),
             Some(Running::Plain(m)) => {
-                let e = m.estimate();
-                (e.c1 + e.c2, 0.0)
+                // theta ends with c1, c2 (no `estimate()`: it builds vectors, and the layer reads every
+                // output after each step).
+                let t = m.theta();
+                (t[t.len() - 2] + t[t.len() - 1], 0.0)
             }
             None => (0.0, 0.0),
         }
