@@ -159,6 +159,16 @@ fn quote(text: &str) -> String {
     }
 }
 
+/// A field as a number, exactly as `f64::from_str` reads it (the same syntax accepted, the same value): the
+/// `fast-float2` parser for the finite decimal numbers that make up data files, the standard library's for
+/// anything it does not take as one (then an error, an infinity or NaN, with the standard library's answer).
+fn parse_number(text: &str) -> Option<f64> {
+    match fast_float2::parse::<f64, _>(text) {
+        Ok(v) if v.is_finite() => Some(v),
+        _ => text.parse().ok(),
+    }
+}
+
 /// The checks of one data row against the header: the one implementation behind [`RowReader`] and [`Table`].
 #[derive(Debug, Default)]
 struct RowChecker {
@@ -280,7 +290,7 @@ impl RowChecker {
             if text.starts_with(char::is_whitespace) || text.ends_with(char::is_whitespace) {
                 text = text.trim();
             }
-            let v: f64 = text.parse().map_err(|_| CsvError::NotANumber {
+            let v = parse_number(text).ok_or_else(|| CsvError::NotANumber {
                 file: self.file.clone(),
                 line: line_no,
                 column: self.header[i].clone(),
@@ -774,6 +784,107 @@ mod tests {
 
     fn parse(text: &str) -> Result<Table, CsvError> {
         Table::parse(text.as_bytes(), Path::new("data.csv"), &["time", "u", "y"])
+    }
+
+    #[test]
+    fn numbers_are_read_as_the_standard_library_reads_them() {
+        use rand_core::{Rng, SeedableRng};
+        let same = |text: &str| {
+            let (got, want) = (parse_number(text), text.parse::<f64>().ok());
+            let agree = match (got, want) {
+                (Some(g), Some(w)) => g.to_bits() == w.to_bits() || (g.is_nan() && w.is_nan()),
+                (g, w) => g.is_none() && w.is_none(),
+            };
+            assert!(agree, "{text:?}: {got:?} against {want:?}");
+        };
+        let odd = [
+            "0",
+            "-0",
+            "+0",
+            "+1",
+            "1.",
+            ".5",
+            "-.5",
+            "+.5",
+            ".",
+            "-",
+            "+",
+            "",
+            "1e5",
+            "1E-5",
+            "1e",
+            "1e+",
+            "1e-",
+            "e5",
+            ".e5",
+            "1.e5",
+            "1.5e308",
+            "1e309",
+            "-1e309",
+            "4.9e-324",
+            "2e-324",
+            "1e-400",
+            "inf",
+            "-inf",
+            "+inf",
+            "Infinity",
+            "-Infinity",
+            "INF",
+            "iNf",
+            "infinit",
+            "infinityx",
+            "nan",
+            "NaN",
+            "-nan",
+            "+nan",
+            "NAN",
+            "nan(1)",
+            "nanx",
+            "0x10",
+            "1_000",
+            "1,5",
+            " 1",
+            "1 ",
+            "\t1",
+            "1..2",
+            "1e5.5",
+            "00012",
+            "-00.000",
+            "0.1000000000000000055511151231257827",
+            "9007199254740993",
+            "123456789012345678901234567890",
+            "1.7976931348623157e308",
+            "1.7976931348623159e308",
+            "2.2250738585072014e-308",
+            "2.2250738585072011e-308",
+            "1d5",
+            "1f",
+            "1.0f64",
+            "--1",
+            "+-1",
+            "1e+-5",
+            "1e0000000000000000000000000005",
+            "0e999999",
+            "\u{661}",
+            "١",
+            "1\u{0}",
+        ];
+        for text in odd {
+            same(text);
+        }
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..20_000 {
+            let v = f64::from_bits(rng.next_u64());
+            for text in [
+                format!("{v}"),
+                format!("{v:e}"),
+                format!("{v:.3}"),
+                format!("{:.17}", v * 1e-300),
+            ] {
+                same(&text);
+            }
+            same(&format!("{}", rng.next_u64() % 100_000));
+        }
     }
 
     #[test]

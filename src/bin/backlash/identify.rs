@@ -223,8 +223,7 @@ impl Pass {
         while let Some(batch) = rows.next_batch()? {
             for row in batch.values.chunks_exact(3) {
                 if let Some(mean) = block.push(row) {
-                    let mean = mean.to_vec();
-                    self.step(&mean)?;
+                    self.step(mean)?;
                 }
             }
             progress.set_position(batch.bytes_read);
