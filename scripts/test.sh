@@ -18,14 +18,15 @@ step "cargo doc (broken or private links in the documentation are errors)"
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
 step "cargo build --release (both FMUs and the CLI)"
 cargo build --release
-step "the Python package into .venv (its extension on the release build)"
-bash scripts/install_package.sh
+step "the manylinux2014 wheel (the one build of the Python extension), installed into .venv"
+bash scripts/build_wheel.sh
+.venv/bin/python -m pip install -q --disable-pip-version-check --force-reinstall --no-deps \
+    target/wheels/backlash_fmu-*.whl
 step "cargo test --release"
 cargo test --release
 step "pytest"
 .venv/bin/python -m pytest -q --durations=10 tests/python --ignore=tests/python/test_api.py
-step "the manylinux2014 wheel, and the Python API tests in a fresh virtual environment holding only it"
-bash scripts/build_wheel.sh
+step "the Python API tests in a fresh virtual environment holding only the wheel"
 rm -rf target/wheel-venv
 python3 -m venv target/wheel-venv
 target/wheel-venv/bin/python -m pip install -q --disable-pip-version-check -c tests/python/requirements.txt \
