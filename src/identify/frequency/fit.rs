@@ -17,7 +17,9 @@ use std::f64::consts::{PI, TAU};
 
 use nalgebra::{DMatrix, DVector};
 
-use super::moments::{Arc, Moments};
+mod moments;
+
+use moments::{Arc, Moments};
 
 /// The cost (22) on a fixed set of bins.
 pub(super) struct Problem<'a> {
@@ -270,7 +272,7 @@ impl Problem<'_> {
     /// Minimise the cost over `[lo, hi]` with a grid of at most `spacing` and golden-section refinement of
     /// the best local minima of the grid. `periodic`: the interval is one period of the cost.
     ///
-    /// The grid's values come from the prefix sums of [`super::moments`]; only the points that may be local
+    /// The grid's values come from the prefix sums of [`moments`]; only the points that may be local
     /// minima within that evaluation's error are evaluated exactly, with their neighbours, so the minima
     /// and the result are those of an exact grid.
     pub fn minimise(&self, lo: f64, hi: f64, spacing: f64, periodic: bool) -> (f64, f64) {

@@ -55,7 +55,6 @@ pub mod analysis;
 pub mod experiment;
 mod fit;
 mod fold;
-mod moments;
 pub mod window;
 
 #[cfg(test)]

@@ -12,14 +12,14 @@
 //! per phase.
 //!
 //! The value is the normal equations' residual: its error grows with their condition number, not accurate
-//! to rounding as the QR solve of [`super::fit`]. Each value comes with a bound on that error
+//! to rounding as the QR solve of [`super`]. Each value comes with a bound on that error
 //! ([`ERROR_PER_BIN`] times the bins, the condition number and the output's sum of squares), and
-//! [`super::fit::Problem::minimise`] only uses it to skip the grid points that cannot be minima within the
+//! [`super::Problem::minimise`] only uses it to skip the grid points that cannot be minima within the
 //! bounds; it recomputes the others exactly. A branch whose normal equations are too ill-conditioned (too
 //! few bins) gives no value, and the exact solve is used there.
 
-use super::MAX_DEGREE;
-use super::fit::{Problem, sigma};
+use super::{Problem, sigma};
+use crate::identify::frequency::MAX_DEGREE;
 
 /// Error of a value per bin summed, per unit of condition number and of `sum count w^2`: rounding (1.1e-16)
 /// with a factor 10 of margin; the tests of `fit` hold the actual error under a tenth of the bound.
