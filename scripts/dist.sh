@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Release FMUs for every platform, one .fmu per model and FMI version carrying every platform's binary:
 #
-#   target/dist/fmi2/{BacklashPlant,MrgiaEstimator}.fmu   binaries/linux64, binaries/win64
-#   target/dist/fmi3/{BacklashPlant,MrgiaEstimator}.fmu   x86_64-linux, x86_64-windows, aarch64-linux
+#   target/dist/fmi2/{BacklashPlant,MrgiaEstimator}.fmu   binaries/linux64, win64, darwin64
+#   target/dist/fmi3/{BacklashPlant,MrgiaEstimator}.fmu   x86_64-linux, x86_64-windows, aarch64-linux,
+#                                                         x86_64-darwin, aarch64-darwin
 #
 # Installs what it needs on a fresh Debian/Ubuntu machine: the mingw-w64 linker, zig and cargo-zigbuild (PyPI,
 # into .venv), and Rust for the two cross targets. Rust: rustup's standard library for the target when rustup
@@ -15,6 +16,9 @@
 #   x86_64 Windows cargo build --target x86_64-pc-windows-gnu, linked by x86_64-w64-mingw32-gcc; libgcc and
 #                  winpthread linked in statically, so the DLL imports only DLLs every Windows has
 #   aarch64 Linux  cargo zigbuild --target aarch64-unknown-linux-gnu.2.17 (GLIBC 2.17)
+#   macOS          x86_64-apple-darwin and aarch64-apple-darwin (rustup's standard library only), linked by
+#                  rust-lld (ld64 flavour, which signs arm64 ad hoc) against a stub of libSystem made from
+#                  zig's (scripts/macos_sdk_stub.py); checked structurally only (tests/cross/test_dist.py)
 #
 # and scripts/merge_fmus.py puts the binaries beside the Linux one in the FMUs that `cargo build --release`
 # packaged. The FMUs are checked by tests/cross (scripts/cross_test.sh runs them under Wine and QEMU).
@@ -64,12 +68,29 @@ env BACKLASH_FMU_NESTED=1 PATH="$venv_bin:$PATH" "${rust_env[@]}" \
     "$venv_bin/cargo-zigbuild" zigbuild "${lib_args[@]}" --target aarch64-unknown-linux-gnu.2.17 "${build_std[@]}"
 arm=target/fmu-build/aarch64-unknown-linux-gnu/fmu/libbacklash.so
 
+# macOS: zig's own Mach-O linker ignores -exported_symbols_list (the dylib would export every Rust symbol) and
+# does not sign; rust-lld does both. Apple's standard library for Rust comes only from rustup.
+say "macOS: x86_64-apple-darwin, aarch64-apple-darwin (rust-lld)"
+.venv/bin/python scripts/macos_sdk_stub.py target/macos-sdk
+lld="$(rustc --print sysroot)/lib/rustlib/$(rustc -vV | sed -n 's/^host: //p')/bin/rust-lld"
+for triple in x86_64-apple-darwin aarch64-apple-darwin; do
+    command -v rustup >/dev/null && { rustup target list --installed | grep -qx "$triple" || rustup target add "$triple"; } ||
+        { echo "dist: $triple needs rustup's standard library for it (rustup target add $triple)" >&2; exit 1; }
+    linker_var="CARGO_TARGET_$(echo "$triple" | tr a-z- A-Z_)_LINKER"
+    env BACKLASH_FMU_NESTED=1 SDKROOT="$PWD/target/macos-sdk" "$linker_var=$lld" \
+        cargo rustc "${lib_args[@]}" --target "$triple" -- -C linker-flavor=ld64.lld \
+        -C link-arg=-install_name -C link-arg=@rpath/libbacklash.dylib
+done
+mac_x86=target/fmu-build/x86_64-apple-darwin/fmu/libbacklash.dylib
+mac_arm=target/fmu-build/aarch64-apple-darwin/fmu/libbacklash.dylib
+
 say "merge into target/dist"
 rm -rf target/dist
 for model in BacklashPlant MrgiaEstimator; do
     .venv/bin/python scripts/merge_fmus.py "target/dist/fmi2/$model.fmu" "target/fmu/$model.fmu" \
-        --binary "win64=$win"
+        --binary "win64=$win" --binary "darwin64=$mac_x86"
     .venv/bin/python scripts/merge_fmus.py "target/dist/fmi3/$model.fmu" "target/fmu3/$model.fmu" \
-        --binary "x86_64-windows=$win" --binary "aarch64-linux=$arm"
+        --binary "x86_64-windows=$win" --binary "aarch64-linux=$arm" \
+        --binary "x86_64-darwin=$mac_x86" --binary "aarch64-darwin=$mac_arm"
 done
 say "done"
