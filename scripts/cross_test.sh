@@ -2,8 +2,9 @@
 # The FMUs on every platform they ship for: `bash scripts/dist.sh` (target/dist), then tests/cross:
 # test_dist.py reads the FMUs (platforms, fmpy validation, the Windows DLL's import table, GLIBC 2.17, no debug
 # information, the same exports everywhere); test_cross.py runs one C master natively, under Wine (the Windows
-# DLL) and under qemu-aarch64 (the aarch64 library) on paper 000's example in FMI 2.0 and 3.0, and FMPy's Wine
-# remoting. Installs Wine, QEMU and the arm64 C library (Debian packages) when missing.
+# DLL) and under qemu-aarch64 (the aarch64 library) on paper 000's example in FMI 2.0 and 3.0;
+# test_fmpy_remoting.py runs FMPy's Wine remoting on the DLL. Installs Wine, QEMU and the arm64 C library
+# (Debian packages) when missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/apt_install.sh gcc wine64 qemu-user-static libc6-arm64-cross libgcc-s1-arm64-cross

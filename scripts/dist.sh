@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Release FMUs for every platform, one .fmu per model and FMI version carrying every platform's binary:
 #
-#   target/dist/fmi2/{BacklashPlant,MrgiaEstimator}.fmu   binaries/linux64, binaries/win64
-#   target/dist/fmi3/{BacklashPlant,MrgiaEstimator}.fmu   x86_64-linux, x86_64-windows, aarch64-linux
+#   target/dist/fmi2/{BacklashPlant,MrgiaEstimator}.fmu   binaries/linux64, win64, darwin64
+#   target/dist/fmi3/{BacklashPlant,MrgiaEstimator}.fmu   x86_64-linux, x86_64-windows, aarch64-linux,
+#                                                         x86_64-darwin, aarch64-darwin
 #
 # Installs what it needs on a fresh Debian/Ubuntu machine: the mingw-w64 linker, zig and cargo-zigbuild (PyPI,
 # into .venv), and Rust for the two cross targets. Rust: rustup's standard library for the target when rustup
@@ -15,6 +16,13 @@
 #   x86_64 Windows cargo build --target x86_64-pc-windows-gnu, linked by x86_64-w64-mingw32-gcc; libgcc and
 #                  winpthread linked in statically, so the DLL imports only DLLs every Windows has
 #   aarch64 Linux  cargo zigbuild --target aarch64-unknown-linux-gnu.2.17 (GLIBC 2.17)
+#   macOS          x86_64-apple-darwin and aarch64-apple-darwin (rustup's standard library only), linked by
+#                  rust-lld (ld64 flavour, which signs arm64 ad hoc) against a stub of libSystem made from
+#                  zig's (scripts/macos_sdk_stub.py); checked structurally only (tests/cross/test_dist.py)
+#
+# For speed on a 2-core machine, Windows and both macOS targets are one cargo build (one job graph keeps both
+# cores busy where a single target's build waits on one crate), and the aarch64 build runs beside it in a
+# target directory of its own (cargo locks a target directory for one build at a time).
 #
 # and scripts/merge_fmus.py puts the binaries beside the Linux one in the FMUs that `cargo build --release`
 # packaged. The FMUs are checked by tests/cross (scripts/cross_test.sh runs them under Wine and QEMU).
@@ -30,46 +38,87 @@ command -v cargo >/dev/null || bash scripts/apt_install.sh rustc-web cargo-web
 .venv/bin/python -m pip install -q --disable-pip-version-check -r scripts/requirements-cross.txt
 venv_bin="$PWD/.venv/bin"
 
-# How to build for one cross target: sets `rust_env` (variables for cargo) and `build_std` (its extra flags).
-rust_for() {
-    local triple=$1
-    rust_env=()
-    build_std=()
-    if [ "${BACKLASH_DIST_RUST:-}" != debian ] && command -v rustup >/dev/null &&
-        { rustup target list --installed | grep -qx "$triple" || rustup target add "$triple" >/dev/null 2>&1; }; then
-        return
-    fi
+# rustup's standard library for every cross target, when rustup can install it; else (or with
+# BACKLASH_DIST_RUST=debian) Debian's rustc-web builds std for Windows and aarch64 (-Zbuild-std) and macOS is
+# left out (the FMUs then lack it, and tests/cross says so).
+cross=(x86_64-pc-windows-gnu aarch64-unknown-linux-gnu x86_64-apple-darwin aarch64-apple-darwin)
+rustup_has_all() {
+    [ "${BACKLASH_DIST_RUST:-}" != debian ] && command -v rustup >/dev/null || return 1
+    local installed
+    installed=$(rustup target list --installed)
+    for t in "${cross[@]}"; do
+        grep -qx "$t" <<<"$installed" || rustup target add "$t" >/dev/null 2>&1 || return 1
+    done
+}
+rust_env=()
+build_std=()
+macos=1
+if ! rustup_has_all; then
     bash scripts/apt_install.sh rustc-web cargo-web rust-web-src
-    echo "   $triple: rustup has no standard library for it here; Debian's rustc-web builds one (-Zbuild-std)"
+    echo "   rustup cannot install the cross targets' standard library here: Debian's rustc-web builds it" \
+        "(-Zbuild-std); macOS is left out (Apple's is only in rustup)" >&2
     rust_env=(PATH="/usr/bin:$venv_bin:$PATH" CARGO=/usr/bin/cargo RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1)
     build_std=(-Zbuild-std=std,panic_unwind)
-}
+    macos=0
+fi
 
-# The FMU-only library, as build.rs builds it (build/package.rs), for another target, into the same folder as
-# build.rs's own build. BACKLASH_FMU_NESTED tells build.rs that this is that build (no packaging inside it).
-lib_args=(--profile fmu --lib --no-default-features --target-dir target/fmu-build)
+# The FMU-only library, as build.rs builds it (build/package.rs), for the other targets. BACKLASH_FMU_NESTED
+# tells build.rs that this is that build (no packaging inside it). The flags are the project's own: RUSTFLAGS
+# from the caller would override the per-target flags below.
+unset RUSTFLAGS CARGO_ENCODED_RUSTFLAGS
+lib_args=(--profile fmu --lib --no-default-features)
 
 say "x86_64 Linux: cargo build --release (the FMUs of target/fmu and target/fmu3)"
 BACKLASH_FMU_PORTABLE=require cargo build --release
 
-say "x86_64 Windows: x86_64-pc-windows-gnu"
-rust_for x86_64-pc-windows-gnu
-env BACKLASH_FMU_NESTED=1 "${rust_env[@]}" CARGO_TARGET_X86_64_PC_WINDOWS_GNU_LINKER=x86_64-w64-mingw32-gcc \
-    cargo build "${lib_args[@]}" --target x86_64-pc-windows-gnu "${build_std[@]}"
-win=target/fmu-build/x86_64-pc-windows-gnu/fmu/backlash.dll
+say "aarch64 Linux (cargo zigbuild, in the background, log target/fmu-build-zig.log)"
+env BACKLASH_FMU_NESTED=1 PATH="$venv_bin:$PATH" "${rust_env[@]}" "$venv_bin/cargo-zigbuild" zigbuild \
+    "${lib_args[@]}" --target-dir target/fmu-build-zig --target aarch64-unknown-linux-gnu.2.17 "${build_std[@]}" \
+    >target/fmu-build-zig.log 2>&1 &
+zig_pid=$!
+trap 'kill "$zig_pid" 2>/dev/null || true' EXIT  # a failed build below leaves no build running behind it
+arm=target/fmu-build-zig/aarch64-unknown-linux-gnu/fmu/libbacklash.so
 
-say "aarch64 Linux: aarch64-unknown-linux-gnu.2.17"
-rust_for aarch64-unknown-linux-gnu
-env BACKLASH_FMU_NESTED=1 PATH="$venv_bin:$PATH" "${rust_env[@]}" \
-    "$venv_bin/cargo-zigbuild" zigbuild "${lib_args[@]}" --target aarch64-unknown-linux-gnu.2.17 "${build_std[@]}"
-arm=target/fmu-build/aarch64-unknown-linux-gnu/fmu/libbacklash.so
+# macOS: zig's own Mach-O linker ignores -exported_symbols_list (the dylib would export every Rust symbol) and
+# does not sign; rust-lld does both. SDKROOT: the stub of libSystem it links against.
+targets=(--target x86_64-pc-windows-gnu)
+mac_env=()
+if ((macos)); then
+    .venv/bin/python scripts/macos_sdk_stub.py target/macos-sdk
+    lld="$(rustc --print sysroot)/lib/rustlib/$(rustc -vV | sed -n 's/^host: //p')/bin/rust-lld"
+    mac_flags="-C linker-flavor=ld64.lld -C link-arg=-install_name -C link-arg=@rpath/libbacklash.dylib"
+    for t in X86_64_APPLE_DARWIN AARCH64_APPLE_DARWIN; do
+        mac_env+=("CARGO_TARGET_${t}_LINKER=$lld" "CARGO_TARGET_${t}_RUSTFLAGS=$mac_flags")
+    done
+    mac_env+=(SDKROOT="$PWD/target/macos-sdk")
+    targets+=(--target x86_64-apple-darwin --target aarch64-apple-darwin)
+fi
+say "Windows x64 (mingw-w64)${mac_env:+, macOS x86_64 and arm64 (rust-lld)}: one cargo build"
+env BACKLASH_FMU_NESTED=1 "${rust_env[@]}" "${mac_env[@]}" \
+    CARGO_TARGET_X86_64_PC_WINDOWS_GNU_LINKER=x86_64-w64-mingw32-gcc \
+    cargo build "${lib_args[@]}" --target-dir target/fmu-build "${targets[@]}" "${build_std[@]}"
+win=target/fmu-build/x86_64-pc-windows-gnu/fmu/backlash.dll
+mac_x86=target/fmu-build/x86_64-apple-darwin/fmu/libbacklash.dylib
+mac_arm=target/fmu-build/aarch64-apple-darwin/fmu/libbacklash.dylib
+
+say "waiting for the aarch64 build"
+if ! wait "$zig_pid"; then
+    cat target/fmu-build-zig.log >&2
+    echo "dist: the aarch64 build failed (log above, target/fmu-build-zig.log)" >&2
+    exit 1
+fi
+tail -n 1 target/fmu-build-zig.log
 
 say "merge into target/dist"
+fmi2=(--binary "win64=$win")
+fmi3=(--binary "x86_64-windows=$win" --binary "aarch64-linux=$arm")
+if ((macos)); then
+    fmi2+=(--binary "darwin64=$mac_x86")
+    fmi3+=(--binary "x86_64-darwin=$mac_x86" --binary "aarch64-darwin=$mac_arm")
+fi
 rm -rf target/dist
 for model in BacklashPlant MrgiaEstimator; do
-    .venv/bin/python scripts/merge_fmus.py "target/dist/fmi2/$model.fmu" "target/fmu/$model.fmu" \
-        --binary "win64=$win"
-    .venv/bin/python scripts/merge_fmus.py "target/dist/fmi3/$model.fmu" "target/fmu3/$model.fmu" \
-        --binary "x86_64-windows=$win" --binary "aarch64-linux=$arm"
+    .venv/bin/python scripts/merge_fmus.py "target/dist/fmi2/$model.fmu" "target/fmu/$model.fmu" "${fmi2[@]}"
+    .venv/bin/python scripts/merge_fmus.py "target/dist/fmi3/$model.fmu" "target/fmu3/$model.fmu" "${fmi3[@]}"
 done
 say "done"

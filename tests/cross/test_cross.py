@@ -8,11 +8,9 @@ noise-free and at SNR 43) through the FMI 2.0 and the FMI 3.0 exports, saves, se
 FMU states half way and replays the second half, and makes two bad calls. Every platform must print the same
 bits as x86_64 Linux.
 """
-import os
 import pathlib
 import shutil
 import struct
-import subprocess
 import sys
 import zipfile
 import xml.etree.ElementTree as ET
@@ -20,13 +18,11 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from dist_fmus import dist_fmu
+from dist_fmus import WINE, dist_fmu, paper_input, run
 
 HERE = pathlib.Path(__file__).resolve().parent
-WINE = os.environ.get("WINE64", "/usr/lib/wine/wine64")
 ARM_SYSROOT = "/usr/aarch64-linux-gnu"
 N = 3000
-PAPER_INPUT_VARIANCE = 1.93  # paper 000, section 4 (src/identify/mrgia/study.rs)
 EST_OUTPUTS = ["a1", "a2", "b0", "m2", "c1", "c2", "y_hat", "e"]
 
 # platform -> (FMI 2.0 folder or None, FMI 3.0 folder, how to run the master)
@@ -52,32 +48,6 @@ def vrs(root):
     for el in root.find("ModelVariables"):
         found[el.get("name")] = el.get("valueReference")
     return found
-
-
-def run(cmd, **kw):
-    out = subprocess.run(cmd, capture_output=True, text=True, timeout=600, **kw)
-    if out.returncode != 0:
-        pytest.fail(f"{cmd[0]} failed ({out.returncode}):\n{out.stdout[-2000:]}\n{out.stderr[-4000:]}")
-    return out
-
-
-@pytest.fixture(scope="session")
-def work(tmp_path_factory):
-    return tmp_path_factory.mktemp("cross")
-
-
-@pytest.fixture(scope="session")
-def wine_env(work):
-    """A Wine prefix of its own with the ProcessPrng shim as C:\\windows\\system32\\bcryptprimitives.dll."""
-    if not os.access(WINE, os.X_OK):
-        pytest.fail(f"{WINE} is missing (apt-get install wine64)")
-    env = dict(os.environ, WINEPREFIX=str(work / "wineprefix"), WINEDEBUG="-all", WINEDLLOVERRIDES="mscoree,mshtml=")
-    run([WINE, "wineboot", "--init"], env=env)
-    shim = work / "bcryptprimitives.dll"
-    run(["x86_64-w64-mingw32-gcc", "-O2", "-shared", "-static-libgcc", "-o", str(shim), str(HERE / "prng_shim.c"),
-         str(HERE / "prng_shim.def"), "-ladvapi32"])
-    shutil.copy(shim, work / "wineprefix" / "drive_c" / "windows" / "system32" / "bcryptprimitives.dll")
-    return env
 
 
 @pytest.fixture(scope="session")
@@ -106,8 +76,7 @@ def masters(work, wine_env):
 
 @pytest.fixture(scope="session")
 def input_file(work):
-    amp = np.sqrt(3 * PAPER_INPUT_VARIANCE)
-    u = np.random.default_rng(0).uniform(-amp, amp, N)
+    u = paper_input(N)
     path = work / "u.bin"
     path.write_bytes(struct.pack(f"<{N}d", *u))
     return path

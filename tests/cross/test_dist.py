@@ -5,7 +5,10 @@
 - The Windows DLL imports only DLLs every Windows (10 and later) has: no libgcc_s, libwinpthread or other
   mingw runtime beside it. Its import table is read with x86_64-w64-mingw32-objdump.
 - The Linux binaries need no GLIBC symbol newer than 2.17, carry no debug information and no symbol table.
-- Every platform exports the same fmi2*/fmi3* functions.
+- Every platform exports the same fmi2*/fmi3* functions, and the macOS dylibs nothing else.
+- The macOS dylibs (built and checked here, never loaded: no macOS at hand) are Mach-O for their processor, load
+  only libSystem, need macOS 10.12 (x86_64) or 11 (arm64) and carry no debug information; the arm64 one has an
+  ad-hoc code signature whose page hashes match the file (macOS on Apple silicon loads nothing unsigned).
 """
 import re
 import subprocess
@@ -16,9 +19,12 @@ from elftools.elf.elffile import ELFFile
 from elftools.elf.gnuversions import GNUVerNeedSection
 
 from dist_fmus import dist_fmu
+from macho import CS_ADHOC, CS_HASHTYPE_SHA256, MH_DYLIB, MachO
 
 MODELS = ["BacklashPlant", "MrgiaEstimator"]
-PLATFORMS = {2: ["linux64", "win64"], 3: ["aarch64-linux", "x86_64-linux", "x86_64-windows"]}
+PLATFORMS = {2: ["darwin64", "linux64", "win64"],
+             3: ["aarch64-darwin", "aarch64-linux", "x86_64-darwin", "x86_64-linux", "x86_64-windows"]}
+MACOS = {"x86_64-darwin": ("x86_64", (10, 12)), "aarch64-darwin": ("arm64", (11, 0))}  # processor, oldest macOS
 
 # DLLs that come with every Windows from 10 on (the API sets resolve inside Windows itself).
 SYSTEM_DLLS = {"kernel32.dll", "ntdll.dll", "msvcrt.dll", "userenv.dll", "ws2_32.dll", "advapi32.dll",
@@ -39,6 +45,8 @@ def test_platforms_and_validation(version, model):
     bins = binaries(version, model)
     assert sorted(bins) == PLATFORMS[version]
     assert bins == binaries(version, MODELS[0]), "both models carry the same shared library"
+    if version == 2:
+        assert bins["darwin64"] == binaries(3, model)["x86_64-darwin"], "FMI 2.0's darwin64 is the x86_64 dylib"
     assert validate_fmu(str(dist_fmu(version, model))) == []
 
 
@@ -103,3 +111,26 @@ def test_every_platform_exports_the_same_fmi_functions(libs):
     table = dump.split("[Ordinal/Name Pointer] Table", 1)[1]
     windows = set(re.findall(r"\]\s+(fmi\w+)", table))
     assert windows == linux
+    for platform in MACOS:
+        exports = MachO(libs[platform].read_bytes()).exports()
+        assert {name.removeprefix("_") for name in exports} == linux, platform  # C names take a '_' on Mach-O
+
+
+@pytest.mark.parametrize("platform", list(MACOS))
+def test_macos_dylibs_are_mach_o_for_their_processor_and_load_only_libsystem(libs, platform):
+    dylib = MachO(libs[platform].read_bytes())
+    arch, oldest_macos = MACOS[platform]
+    assert (dylib.arch, dylib.filetype) == (arch, MH_DYLIB)
+    assert dylib.dylibs() == ["/usr/lib/libSystem.B.dylib"]
+    assert dylib.min_macos() <= oldest_macos
+    assert "__DWARF" not in dylib.segments(), dylib.segments()
+
+
+def test_arm64_dylib_is_signed_ad_hoc_with_the_hashes_of_its_pages(libs):
+    data = libs["aarch64-darwin"].read_bytes()
+    flags, hash_type, pages, differing = MachO(data).code_signature()
+    assert flags & CS_ADHOC and hash_type == CS_HASHTYPE_SHA256
+    assert pages > 0 and differing == 0, f"{differing} of {pages} pages differ from their hashes"
+    changed = bytearray(data)
+    changed[3 * 4096 + 5] ^= 1
+    assert MachO(bytes(changed)).code_signature()[3] == 1, "a changed byte is seen"
