@@ -495,25 +495,23 @@ impl Monitor {
             return (est.update(u, y), None);
         }
         let k = est.samples;
-        let alarm = self.det.as_mut().and_then(|d| {
-            let delay = d.theta.delay;
-            let ring = &est.u_ring;
-            let lag = |j: usize| {
-                let l = (delay + j) as u64;
-                if k >= l {
-                    ring[((k - l) as usize) & (super::RING - 1)]
-                } else {
-                    0.0
-                }
-            };
-            d.step(&self.cfg, (k, t), lag, y)
-        });
+        let alarm = match self.input_delay() {
+            Some(delay) => {
+                let ring = &est.u_ring;
+                let lag = |j: usize| {
+                    let l = (delay + j) as u64;
+                    if k >= l {
+                        ring[((k - l) as usize) & (super::RING - 1)]
+                    } else {
+                        0.0
+                    }
+                };
+                self.test_sample((k, t), lag, y)
+            }
+            None => None,
+        };
         self.y_max = self.y_max.max(y.abs());
         let r = est.update(u, y);
-        if let Some(a) = alarm {
-            self.alarms += 1;
-            self.first.get_or_insert(a);
-        }
         if self.det.is_none() && est.refining() {
             let at = *self.freeze_at.get_or_insert(est.samples + self.cfg.learn);
             if est.samples >= at {
@@ -521,6 +519,48 @@ impl Monitor {
             }
         }
         (r, alarm)
+    }
+
+    /// The test alone on sample k at time t, with `lag(j)` = u(k - d - j) for the model's delay d
+    /// ([`Monitor::input_delay`]); the estimator is not stepped. [`Monitor::update`] runs it before the
+    /// estimator's step; a study of the test on a frozen reference runs it alone (half the work per sample).
+    /// The alarm, if this sample raised one; None while learning.
+    pub fn test_sample(
+        &mut self,
+        (k, t): (u64, f64),
+        lag: impl Fn(usize) -> f64,
+        y: f64,
+    ) -> Option<Alarm> {
+        let alarm = self.det.as_mut()?.step(&self.cfg, (k, t), lag, y);
+        if let Some(a) = alarm {
+            self.alarms += 1;
+            self.first.get_or_insert(a);
+        }
+        alarm
+    }
+
+    /// The information per sample about the relative play growth that the test uses: `mean(gt^2)` over the
+    /// samples since the reference (module docs), so that a growth by q has the per-sample distance
+    /// `q^2 mean(gt^2) / (2 sigma^2)` once the offset and gain are unknown (the efficient information). None
+    /// while learning.
+    pub fn play_information(&self) -> Option<f64> {
+        self.det
+            .as_ref()
+            .filter(|d| d.n > 0)
+            .map(|d| d.projection().2)
+    }
+
+    /// The input delay of the reference model (None while learning).
+    pub fn input_delay(&self) -> Option<usize> {
+        self.det.as_ref().map(|d| d.theta.delay)
+    }
+
+    /// Clear the latched alarm ([`Monitor::first_alarm`]: None again) and restart the test on the current
+    /// reference: an operator's acknowledgement (the FMU's `wear_reset`). The count of alarms stays; a
+    /// growth that goes on raises a new alarm.
+    pub fn reset_alarm(&mut self) {
+        self.first = None;
+        self.restart();
     }
 
     /// The reference from the running recursion (module docs); None without a recursion.

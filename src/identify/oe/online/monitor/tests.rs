@@ -276,3 +276,20 @@ fn a_gain_change_is_tracked_not_called_wear() {
     }
     assert!(total <= 3, "{total} alarms");
 }
+
+/// The study's test alone after the freeze gives the alarms of the full run (estimator and test).
+#[test]
+fn the_test_alone_equals_the_full_run_on_a_frozen_reference() {
+    let plant = PlantParams::PAPER;
+    let sigma = noise_std(plant, 20.0);
+    let no_follow = MonitorConfig {
+        follow: false,
+        ..cfg(1e3)
+    };
+    let alone = super::study::false_alarms(plant, sigma, 7, no_follow, 30_000);
+    let mut run = Run::new(plant, sigma, 7, Change::None, no_follow);
+    run.learn(100_000);
+    let full = alarms(&mut run, 30_000).len() as u64;
+    assert_eq!(alone, (30_000, full));
+    assert!(full > 0, "period 1e3 over 30 periods: some alarms expected");
+}
