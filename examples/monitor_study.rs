@@ -3,10 +3,14 @@
 //! docs/RESULTS.md ("Wear monitoring").
 //!
 //! ```sh
-//! cargo run --release --example monitor_study -- [--threads 2] [--runs 40]
+//! cargo run --release --example monitor_study -- [--threads 2] [--runs 40] [--alarms 100]
+//!     [--per-record 20] [--max-periods 1000] [--max-period 1e5]
 //! ```
 //!
-//! All runs of a table go to `--threads` worker threads of this one process (a shared job counter).
+//! All runs of a table go to `--threads` worker threads of this one process (a shared job counter). A
+//! false-alarm cell runs records of `--per-record` periods (a new seed each; the test restarts on the same
+//! reference after each alarm) until `--alarms` alarms or `--max-periods` periods: with 100 alarms the 95%
+//! interval of the mean run length is about +/-20%.
 
 use backlash::identify::oe::online::monitor::MonitorConfig;
 use backlash::identify::oe::online::monitor::study::{
@@ -58,19 +62,42 @@ fn cfg(period: f64) -> MonitorConfig {
     }
 }
 
-/// Table 1: mean run length to a false alarm. Each (plant, SNR, period) runs `records` records of
-/// `per_record` periods each.
-fn false_alarm_table(
-    threads: usize,
-    records: u64,
+/// How long the false-alarm cells run: records of `per_record` periods each (a new seed per record) until
+/// `alarms` alarms or `max_periods` periods in all.
+struct FalseAlarmRuns {
     per_record: f64,
+    alarms: u64,
+    max_periods: f64,
     max_period: f64,
-) -> Vec<(String, f64, f64, f64, f64)> {
+}
+
+/// One cell of table 1: records until enough alarms (the stopping rule of [`FalseAlarmRuns`]); (samples
+/// tested, alarms, records).
+fn false_alarm_cell(
+    plant: PlantParams,
+    sigma: f64,
+    period: f64,
+    runs: &FalseAlarmRuns,
+) -> (u64, u64, u64) {
+    let n = (runs.per_record * period) as u64;
+    let cap = (runs.max_periods * period) as u64;
+    let (mut samples, mut alarms, mut records) = (0, 0, 0);
+    while alarms < runs.alarms && samples < cap {
+        let (s, a) = false_alarms(plant, sigma, 1000 + records, cfg(period), n);
+        samples += s;
+        alarms += a;
+        records += 1;
+    }
+    (samples, alarms, records)
+}
+
+/// Table 1: mean run length to a false alarm, per (plant, SNR, period); the cells go to the worker threads.
+fn false_alarm_table(threads: usize, runs: &FalseAlarmRuns) -> Vec<(String, f64, f64, f64, f64)> {
     let plants = ["paper", "wide-gaps", "reversed-slopes"];
     let snrs = [20.0, 43.0];
     let periods: Vec<f64> = [1e3, 1e4, 1e5]
         .into_iter()
-        .filter(|p| *p <= max_period)
+        .filter(|p| *p <= runs.max_period)
         .collect();
     let mut cells = Vec::new();
     for p in plants {
@@ -80,30 +107,25 @@ fn false_alarm_table(
             }
         }
     }
-    let jobs: Vec<(usize, u64)> = (0..cells.len())
-        .flat_map(|c| (0..records).map(move |r| (c, r)))
-        .collect();
-    let sigmas: Vec<f64> = cells.iter().map(|c| noise_std(plant(c.0), c.1)).collect();
-    let runs = parallel(threads, jobs.len(), |i| {
-        let (c, r) = jobs[i];
-        let (p, _, period) = cells[c];
-        let n = (per_record * period) as u64;
-        false_alarms(plant(p), sigmas[c], 1000 + r, cfg(period), n)
+    // The longest cells first, so that the threads finish together.
+    let mut order: Vec<usize> = (0..cells.len()).collect();
+    order.sort_by(|a, b| cells[*b].2.total_cmp(&cells[*a].2));
+    let got = parallel(threads, cells.len(), |i| {
+        let (p, snr, period) = cells[order[i]];
+        let pl = plant(p);
+        false_alarm_cell(pl, noise_std(pl, snr), period, runs)
     });
+    let mut by_cell = vec![(0, 0, 0); cells.len()];
+    for (i, g) in got.into_iter().enumerate() {
+        by_cell[order[i]] = g;
+    }
     cells
         .iter()
-        .enumerate()
-        .map(|(c, &(p, snr, period))| {
-            let (mut s, mut a) = (0, 0);
-            for (j, r) in jobs.iter().zip(&runs) {
-                if j.0 == c {
-                    s += r.0;
-                    a += r.1;
-                }
-            }
+        .zip(by_cell)
+        .map(|(&(p, snr, period), (s, a, records))| {
             let (arl, lo, hi) = arl_interval(s, a);
             println!(
-                "| {p} | {snr} | {period:.0e} | {s} | {a} | {arl:.0} | {lo:.0} - {hi:.0} | {:.2} |",
+                "| {p} | {snr} | {period:.0e} | {records} | {s} | {a} | {arl:.0} | {lo:.0} - {hi:.0} | {:.2} |",
                 arl / period
             );
             (p.to_string(), snr, period, arl, a as f64)
@@ -234,13 +256,28 @@ fn delay_table(threads: usize, name: &str, snr: f64, period: f64, runs: u64, arl
         } else {
             step_delay_bound(kl_per_sample(pl, *ratio, sigma, 20_000), period)
         };
+        // The same bounds with the offset and the gain unknown: the efficient information of the test.
+        let info: Vec<f64> = jobs
+            .iter()
+            .zip(&got)
+            .filter(|(j, _)| j.0 == c)
+            .filter_map(|(_, g)| g.information)
+            .collect();
+        let eff_unit = info.iter().sum::<f64>() / info.len().max(1) as f64 / (2.0 * sigma * sigma);
+        let eff = if *drift {
+            drift_delay_bound(eff_unit * 0.01, 0.1, *ratio, period)
+        } else {
+            step_delay_bound(eff_unit * ratio * ratio, period)
+        };
         let onset =
             d.onset_err.iter().map(|e| e.abs()).sum::<f64>() / d.onset_err.len().max(1) as f64;
         println!(
-            "| {name} | {snr} | {label} | {:.0} | {:.0} | {:.2} | {:.0} ({rule_missed} missed) | {} | {} | {onset:.0} |",
+            "| {name} | {snr} | {label} | {:.0} | {:.1} | {:.2} | {:.1} | {:.2} | {:.0} ({rule_missed} missed) | {} | {} | {onset:.0} |",
             mean(&d.ours),
             bound,
             mean(&d.ours) / bound,
+            eff,
+            mean(&d.ours) / eff,
             mean(&rd),
             d.early,
             d.missed,
@@ -372,19 +409,23 @@ fn main() {
     }
     let threads = get("--threads", 2.0) as usize;
     let runs = get("--runs", 40.0) as u64;
-    let records = get("--records", 10.0) as u64;
-    let per_record = get("--per-record", 20.0);
+    let runs_fa = FalseAlarmRuns {
+        per_record: get("--per-record", 20.0),
+        alarms: get("--alarms", 100.0) as u64,
+        max_periods: get("--max-periods", 1000.0),
+        max_period: get("--max-period", 1e5),
+    };
     println!("## False alarms\n");
     println!(
-        "| plant | SNR | alarm_period | samples tested | alarms | mean run length | 95% interval | ratio to setting |"
+        "| plant | SNR | alarm_period | records | samples tested | alarms | mean run length | 95% interval | ratio to setting |"
     );
-    println!("| --- | --- | --- | --- | --- | --- | --- | --- |");
-    let fa = false_alarm_table(threads, records, per_record, get("--max-period", 1e5));
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    let fa = false_alarm_table(threads, &runs_fa);
     println!("\n## Detection delay (alarm_period 1e4)\n");
     println!(
-        "| plant | SNR | change | monitor delay | bound | monitor / bound | threshold rule delay | early alarms | missed | mean abs onset error |"
+        "| plant | SNR | change | monitor delay | bound, offset and gain known | monitor / bound | bound, offset and gain unknown | monitor / bound | threshold rule delay | early alarms | missed | mean abs onset error |"
     );
-    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     for snr in [20.0, 43.0] {
         let arl = fa
             .iter()

@@ -22,6 +22,7 @@ use crate::identify::frequency::analysis::{Analysis, AnalysisOptions, analyse};
 use crate::identify::frequency::{FrequencyError, SineRecord};
 use crate::identify::mrgia::{Estimate, MrgiaConfig};
 use crate::identify::oe::online::OnlineEstimator;
+use crate::identify::oe::online::monitor::{Session, Status};
 use crate::identify::oe::{
     self, OeConfig, OeError, OeFit, StdErr, Uncertainty, estimate_of, param_names, plant_of,
 };
@@ -180,6 +181,34 @@ pub fn mrgia_json(
         out["std_err"] = json!(StdErr::from_flat(cfg.na, cfg.nb, &se));
     }
     out
+}
+
+/// The JSON of `backlash monitor` for a monitored record whose input `check` saw: the session's summary with
+/// `warnings`, the input check of `identify mrgia` (what the record cannot support) and a sentence for what
+/// the summary alone would leave unsaid: a negative play estimate (a play cannot be negative: the record has
+/// not determined it) and a record that ended before the test ran.
+pub fn monitor_json(session: &Session, check: &InputCheck) -> Result<Value, ApiError> {
+    let sum = session.summary();
+    let params = session.estimator().config().n_params();
+    let mut warnings = check.warnings(sum.samples, params);
+    if sum.play < 0.0 {
+        warnings.push(format!(
+            "the play estimate c1 + c2 is negative ({:.4}): a play cannot be, so the record has not \
+             determined it (an input that does not move the output both ways, or the estimator still in its \
+             warm-up)",
+            sum.play
+        ));
+    }
+    if sum.status == Status::Learning {
+        warnings.push(
+            "the record ended before the reference model was frozen (warm-up, then the learning samples): \
+             no wear test ran"
+                .into(),
+        );
+    }
+    let mut out = serde_json::to_value(&sum).map_err(|e| ApiError::Setting(e.to_string()))?;
+    out["warnings"] = json!(warnings);
+    Ok(out)
 }
 
 /// MRGIA over a whole record: the JSON of `identify mrgia`. `progress(done, total)` is called every `every`

@@ -196,7 +196,7 @@ class _Slave:
 
 
 def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None, ts=1.0, record_every=1,
-             checkpoints=None, callbacks=None, plant_events=None, estimator_outputs=()):
+             checkpoints=None, callbacks=None, plant_events=None, estimator_outputs=(), estimator_events=None):
     """Co-simulate plant and estimator over the samples u (one communication step of ts per sample).
 
     Returns a dict of numpy arrays:
@@ -209,6 +209,7 @@ def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None
       'names'     the column names of 'estimates'
     `plant_events` maps a sample index k to {name: value} set on the plant before it reads u(k) (tunable
     parameters such as c1, c2: a wear step in the middle of a run).
+    `estimator_events` does the same on the estimator before it reads sample k (its input `wear_reset`).
     `estimator_outputs` names further estimator outputs (Real or Boolean, e.g. the wear monitor's) recorded at
     the same points into 'outputs' (a dict of arrays by name).
     """
@@ -243,6 +244,7 @@ def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None
         y = np.empty(n)
         rows, upd = [], []
         events = {int(k): v for k, v in (plant_events or {}).items()}
+        est_events = {int(k): v for k, v in (estimator_events or {}).items()}
         for k in range(n):
             t = k * ts
             if k in events:
@@ -252,6 +254,8 @@ def run_pair(plant_fmu, estimator_fmu, u, plant_start=None, estimator_start=None
             uk = float(u[k])
             p.setReal(vr_pu, [uk])
             e.setReal(vr_eu_ey, [uk, yk])
+            if k in est_events:
+                est.set_start(est_events[k])
             p.doStep(t, ts)
             e.doStep(t, ts)
             if k + 1 in want_set:

@@ -447,7 +447,7 @@ fn monitor(
         for (k, (&uk, &yk)) in u.iter().zip(y).enumerate() {
             session.push(k as f64 * ts, uk, yk);
         }
-        serde_json::to_string(&session.summary()).map_err(|e| ApiError::Setting(e.to_string()))
+        Ok(api::monitor_json(&session, &api::InputCheck::of(u))?.to_string())
     })
 }
 

@@ -10,7 +10,10 @@
 //! na/nb).
 //!
 //! `monitor` (which implies `refine`) adds the wear monitor of [`crate::identify::oe::online::monitor`]: it
-//! drives the refined estimator sample by sample; sample k has the time k Ts (from the start time).
+//! drives the refined estimator sample by sample; sample k has the time k Ts (from the start time). The input
+//! `wear_reset`, true at a sample, clears the latched alarm before that sample (an input, not a tunable
+//! parameter: inputs are sampled with u and y at the instants, in FMI 2.0 and 3.0 alike, so the reset acts at
+//! a known sample).
 
 use super::mrgia_estimator::{self as md, Var};
 use crate::fmi::Model;
@@ -37,6 +40,8 @@ pub struct EstimatorFmu {
     monitor: bool,
     wear: MonitorConfig,
     mon: Option<Monitor>,
+    /// The input `wear_reset`: true at a sample clears the latched alarm before the sample.
+    wear_reset: bool,
 }
 
 impl EstimatorFmu {
@@ -128,6 +133,7 @@ impl EstimatorFmu {
             Var::WearStatistic => Value::Real(self.mon.as_ref().map_or(0.0, Monitor::statistic)),
             Var::WearAlarm => Value::Boolean(first.is_some()),
             Var::WearOnset => Value::Real(first.map_or(0.0, |a| a.onset)),
+            Var::WearReset => Value::Boolean(self.wear_reset),
             _ => Value::Real(0.0),
         }
     }
@@ -136,6 +142,7 @@ impl EstimatorFmu {
         let w = &mut self.wear;
         match var {
             Var::Monitor => self.monitor = value.as_bool(),
+            Var::WearReset => self.wear_reset = value.as_bool(),
             Var::WearRatio => w.wear_ratio = value.as_real(),
             Var::AlarmPeriod => w.alarm_period = value.as_real(),
             Var::WearLearn => w.learn = value.as_integer().max(0) as u64,
@@ -175,6 +182,7 @@ impl Model for EstimatorFmu {
             monitor: false,
             wear: MonitorConfig::default(),
             mon: None,
+            wear_reset: false,
         }
     }
 
@@ -255,7 +263,8 @@ impl Model for EstimatorFmu {
             | Var::PlaySe
             | Var::WearStatistic
             | Var::WearAlarm
-            | Var::WearOnset => self.wear_value(var),
+            | Var::WearOnset
+            | Var::WearReset => self.wear_value(var),
         }
     }
 
@@ -281,7 +290,8 @@ impl Model for EstimatorFmu {
             | Var::WearRatio
             | Var::AlarmPeriod
             | Var::WearLearn
-            | Var::WearReference => self.set_wear(var, value),
+            | Var::WearReference
+            | Var::WearReset => self.set_wear(var, value),
             // Outputs: the layer refuses to set them before calling here.
             Var::A1
             | Var::A2
@@ -370,6 +380,9 @@ impl Model for EstimatorFmu {
         for _ in 0..n {
             match (&mut self.mon, &mut *est) {
                 (Some(m), Running::Refined(r)) => {
+                    if self.wear_reset {
+                        m.reset_alarm();
+                    }
                     let t = r.samples() as f64 * self.ts;
                     m.update(r, t, self.u, self.y);
                 }
@@ -379,5 +392,50 @@ impl Model for EstimatorFmu {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::identify::oe::online::monitor::study::{Change, Scenario, noise_std};
+    use crate::plant::PlantParams;
+
+    /// `wear_reset` true for one sample clears the latched alarm and onset; a growth that goes on alarms again.
+    #[test]
+    fn wear_reset_clears_the_latched_alarm() {
+        let plant = PlantParams::PAPER;
+        let change = Change::PlayStep {
+            at: 5000,
+            ratio: 0.5,
+        };
+        let mut sc = Scenario::new(plant, noise_std(plant, 20.0), 1, change);
+        let mut fmu = EstimatorFmu::new();
+        fmu.set(Var::Monitor, Value::Boolean(true));
+        fmu.set(Var::Recommended, Value::Boolean(true));
+        fmu.exit_initialization().unwrap();
+        let alarm = |f: &EstimatorFmu| f.get(Var::WearAlarm) == Value::Boolean(true);
+        let mut sample = |f: &mut EstimatorFmu| {
+            let (u, y) = sc.next_sample();
+            f.set(Var::U, Value::Real(u));
+            f.set(Var::Y, Value::Real(y));
+            f.step(1).unwrap();
+        };
+        let mut k = 0;
+        while !alarm(&fmu) && k < 8000 {
+            sample(&mut fmu);
+            k += 1;
+        }
+        assert!(
+            alarm(&fmu) && k > 5000,
+            "no alarm after the step ({k} samples)"
+        );
+        fmu.set(Var::WearReset, Value::Boolean(true));
+        sample(&mut fmu);
+        assert!(!alarm(&fmu));
+        assert_eq!(fmu.get(Var::WearOnset), Value::Real(0.0));
+        fmu.set(Var::WearReset, Value::Boolean(false));
+        sample(&mut fmu);
+        assert_eq!(fmu.get(Var::WearReset), Value::Boolean(false));
     }
 }

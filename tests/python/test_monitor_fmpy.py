@@ -25,12 +25,13 @@ def _noise_std(u):
     return float(np.std(w)) / 20.0
 
 
-def _pair(plant, estimator, seed, monitor=True, step=True, **estimator_start):
+def _pair(plant, estimator, seed, monitor=True, step=True, estimator_events=None, **estimator_start):
     u = paper_input(N, seed)
     events = {STEP: {"c1": 0.75, "c2": 1.5}} if step else None
     start = {"monitor": True, **estimator_start} if monitor else {"refine": True, **estimator_start}
     r = run_pair(plant, estimator, u, plant_start={"noise_std": _noise_std(u), "noise_seed": 900 + seed},
-                 estimator_start=start, plant_events=events, estimator_outputs=WEAR)
+                 estimator_start=start, plant_events=events, estimator_outputs=WEAR,
+                 estimator_events=estimator_events)
     return u, r
 
 
@@ -60,6 +61,21 @@ def test_alarm_after_a_wear_step_never_before(version, request):
         _check_alarm(r)
         play = r["outputs"]["play"]
         assert abs(play[STEP - 1] - 1.5) < 0.05, play[STEP - 1]
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_wear_reset_clears_the_latched_alarm(version, request):
+    """The input `wear_reset`, true for one sample, clears wear_alarm and wear_onset at that sample."""
+    plant = request.getfixturevalue("plant_fmu" if version == 2 else "plant_fmu3")
+    estimator = request.getfixturevalue("estimator_fmu" if version == 2 else "estimator_fmu3")
+    _, r = _pair(plant, estimator, 0)
+    first, _ = _check_alarm(r)
+    k = first + 20
+    _, again = _pair(plant, estimator, 0, estimator_events={k: {"wear_reset": True}, k + 1: {"wear_reset": False}})
+    alarm, samples = again["outputs"]["wear_alarm"], again["samples"]
+    assert alarm[samples == k].all()  # latched until the reset sample
+    assert not alarm[samples == k + 1].any()  # outputs after sample k: cleared
+    assert again["outputs"]["wear_onset"][samples == k + 1][0] == 0.0
 
 
 def test_no_alarm_without_a_step_and_monitor_leaves_estimates(plant_fmu, estimator_fmu):

@@ -3,6 +3,7 @@
 use super::common::RecordArgs;
 use super::identify::Decimated;
 use anyhow::{Context, Result};
+use backlash::api::{InputCheck, monitor_json};
 use backlash::identify::mrgia::MrgiaConfig;
 use backlash::identify::oe::online::monitor::{Alarm, MonitorConfig, Session, play_of};
 use backlash::io::ReadAhead;
@@ -76,12 +77,14 @@ pub fn run(args: &MonitorArgs) -> Result<()> {
     let mut block = options.block(3);
     let mut plot = args.plot.as_ref().map(|_| Decimated::new(PLOTTED));
     let (mut k, mut last_t) = (0u64, f64::NAN);
+    let mut check = InputCheck::default();
     let mut rows = ReadAhead::spawn(rows);
     while let Some(batch) = rows.next_batch()? {
         for row in batch.values.chunks_exact(3) {
             let Some(&[t, u, y]) = block.push(row) else {
                 continue;
             };
+            check.push(u);
             if let Some(a) = session.push(t, u, y)
                 && !args.json
             {
@@ -103,13 +106,16 @@ pub fn run(args: &MonitorArgs) -> Result<()> {
         p.finish(k - 1, &plotted(last_t, &session));
         draw(path, args, &cols.names[0], &p, &session)?;
     }
-    let mut out = serde_json::to_value(session.summary())?;
+    let mut out = monitor_json(&session, &check)?;
     out["file"] = json!(args.file.display().to_string());
     out["decimate"] = json!(args.record.decimate);
     if args.json {
         println!("{out}");
     } else {
         print_summary(&session, &args.file);
+        for w in out["warnings"].as_array().into_iter().flatten() {
+            println!("  warning: {}", w.as_str().unwrap_or_default());
+        }
     }
     Ok(())
 }

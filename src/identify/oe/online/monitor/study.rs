@@ -8,7 +8,7 @@
 
 use super::{Alarm, Monitor, MonitorConfig, play_of};
 use crate::identify::mrgia::{MrgiaConfig, PAPER_INPUT_VARIANCE};
-use crate::identify::oe::online::Refined;
+use crate::identify::oe::online::{RING, Refined};
 use crate::plant::{BacklashParams, Plant, PlantParams};
 use crate::stats::std_dev;
 use rand_chacha::ChaCha8Rng;
@@ -209,8 +209,13 @@ pub fn drift_delay_bound(kl_unit: f64, unit: f64, rate: f64, period: f64) -> f64
     (3.0 * period.ln() / (kl_unit * (rate / unit).powi(2))).cbrt()
 }
 
+/// Inputs the test alone keeps after the freeze: a ring longer than the longest lag (delay 64 + nb 4).
+const LAGS: usize = 128;
+
 /// Run lengths between false alarms on an unchanged record of `samples` samples after the reference
-/// (the test restarts on the same reference after each alarm): (samples tested, alarms).
+/// (the test restarts on the same reference after each alarm): (samples tested, alarms). After the freeze
+/// only the test runs ([`Monitor::test_sample`]): the estimator is not needed for a frozen reference, and
+/// the study costs half as much per sample.
 pub fn false_alarms(
     plant: PlantParams,
     sigma: f64,
@@ -226,10 +231,27 @@ pub fn false_alarms(
     if !run.learn(100_000) {
         return (0, 0);
     }
+    let delay = run.mon.input_delay().expect("the reference is frozen");
+    let mut ring = [0.0; LAGS];
+    for back in 1..=LAGS.min(RING) as u64 {
+        if let Some(k) = run.k.checked_sub(back) {
+            ring[k as usize % LAGS] = run.est.u_ring[k as usize % RING];
+        }
+    }
     let start = run.k;
     let mut alarms = 0;
-    while run.k < start + samples {
-        alarms += u64::from(run.step().is_some());
+    for k in start..start + samples {
+        let (u, y) = run.scenario.next_sample();
+        let lag = |j: usize| {
+            let l = (delay + j) as u64;
+            if k >= l {
+                ring[(k - l) as usize % LAGS]
+            } else {
+                0.0
+            }
+        };
+        alarms += u64::from(run.mon.test_sample((k, k as f64), lag, y).is_some());
+        ring[k as usize % LAGS] = u;
     }
     (samples, alarms)
 }
@@ -258,6 +280,9 @@ pub struct Detection {
     pub early: bool,
     /// The change's sample index.
     pub at: u64,
+    /// The monitor's information per sample about the play growth at the change
+    /// ([`Monitor::play_information`]).
+    pub information: Option<f64>,
 }
 
 /// `change_at(reference_sample)` builds the change relative to the sample at which the reference froze.
@@ -281,7 +306,11 @@ pub fn detect(
     let at = pilot.k + after;
     let mut run = Run::new(plant, sigma, seed, change(at), cfg);
     let mut early = false;
+    let mut information = None;
     while run.k < at + horizon {
+        if run.k == at {
+            information = run.mon.play_information();
+        }
         if let Some(a) = run.step() {
             if run.k <= at {
                 early = true;
@@ -292,6 +321,7 @@ pub fn detect(
                 alarm: Some(a),
                 early,
                 at,
+                information,
             };
         }
     }
@@ -300,6 +330,7 @@ pub fn detect(
         alarm: None,
         early,
         at,
+        information,
     }
 }
 

@@ -249,3 +249,47 @@ fn learning_and_serde_state_round_trip() {
     }
     assert!(bad.check().is_err());
 }
+
+/// A 10% increase of the linear block's gain at period 1e4: the tracker follows the gain (log gain near
+/// ln 1.1) and the alarms come no more often than without a change (before the tracker: one every ~7,800
+/// samples, so about 13 in these 100,000).
+#[test]
+fn a_gain_change_is_tracked_not_called_wear() {
+    let plant = PlantParams::PAPER;
+    let sigma = noise_std(plant, 20.0);
+    let no_follow = MonitorConfig {
+        follow: false,
+        ..cfg(1e4)
+    };
+    let mut total = 0;
+    for seed in 0..2u64 {
+        let at = 5000;
+        let change = Change::LinearGain { at, factor: 1.1 };
+        let mut run = Run::new(plant, sigma, 4000 + seed, change, no_follow);
+        alarms(&mut run, at);
+        total += alarms(&mut run, 50_000).len();
+        let gain = run.mon.det.as_ref().unwrap().nuisance.log_gain;
+        assert!(
+            (gain - 1.1f64.ln()).abs() < 0.01,
+            "seed {seed}: log gain {gain}"
+        );
+    }
+    assert!(total <= 3, "{total} alarms");
+}
+
+/// The study's test alone after the freeze gives the alarms of the full run (estimator and test).
+#[test]
+fn the_test_alone_equals_the_full_run_on_a_frozen_reference() {
+    let plant = PlantParams::PAPER;
+    let sigma = noise_std(plant, 20.0);
+    let no_follow = MonitorConfig {
+        follow: false,
+        ..cfg(1e3)
+    };
+    let alone = super::study::false_alarms(plant, sigma, 7, no_follow, 30_000);
+    let mut run = Run::new(plant, sigma, 7, Change::None, no_follow);
+    run.learn(100_000);
+    let full = alarms(&mut run, 30_000).len() as u64;
+    assert_eq!(alone, (30_000, full));
+    assert!(full > 0, "period 1e3 over 30 periods: some alarms expected");
+}
