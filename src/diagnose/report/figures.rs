@@ -212,6 +212,23 @@ fn measured_and_models(
     series
 }
 
+/// Each model's name, colour and RMSE against the measured trace, from the series of
+/// [`measured_and_models`].
+fn model_errors(series: &[Series]) -> Vec<String> {
+    let measured = series.last().expect("the measured trace");
+    series[..series.len() - 1]
+        .iter()
+        .zip(["red", "blue"])
+        .map(|(s, colour)| {
+            format!(
+                "{} ({colour}, RMSE {})",
+                s.label,
+                fmt(rms_between(measured, s))
+            )
+        })
+        .collect()
+}
+
 /// The held-out part: the measured output on top of the plain and the final model (dashed).
 pub fn heldout_figure(d: &Diagnosis, input: &ReportInput, c: &Curves) -> ReportFigure {
     let (n, nf) = (d.n, d.n_fit);
@@ -222,18 +239,7 @@ pub fn heldout_figure(d: &Diagnosis, input: &ReportInput, c: &Curves) -> ReportF
         models.push((c.names.after.as_str(), &c.after[nf..], FINAL));
     }
     let series = measured_and_models(th, &input.y[nf..n], &models);
-    let measured = series.last().expect("the measured trace");
-    let errors: Vec<String> = series[..series.len() - 1]
-        .iter()
-        .zip(["red", "blue"])
-        .map(|(s, colour)| {
-            format!(
-                "{} ({colour}, RMSE {})",
-                s.label,
-                fmt(rms_between(measured, s))
-            )
-        })
-        .collect();
+    let errors = model_errors(&series);
     ReportFigure {
         file: "heldout.png".into(),
         title: "Held-out part: measured output and the models (free run)".into(),
@@ -371,28 +377,28 @@ pub fn correlations_figure(d: &Diagnosis, input: &ReportInput, c: &Curves) -> Re
     }
 }
 
-/// A cross-record validation: measured on top of both models (dashed) over that record.
-pub fn validation_figure(v: &Validation, input: &ReportInput, c: &Curves) -> ReportFigure {
-    let series = measured_and_models(
-        &v.t,
-        &v.y,
-        &[
-            (c.names.plain.as_str(), &v.result.before, PLAIN),
-            (c.names.after.as_str(), &v.result.after, FINAL),
-        ],
-    );
-    let measured = &series[2];
+/// A cross-record validation: measured on top of both models (dashed) over that record (one model when the
+/// final model simulates as the plain one).
+pub fn validation_figure(
+    d: &Diagnosis,
+    v: &Validation,
+    input: &ReportInput,
+    c: &Curves,
+) -> ReportFigure {
+    let plain = c.plain_label(d);
+    let mut models = vec![(plain.as_str(), v.result.before.as_slice(), PLAIN)];
+    if c.extended(d) {
+        models.push((c.names.after.as_str(), &v.result.after, FINAL));
+    }
+    let series = measured_and_models(&v.t, &v.y, &models);
     ReportFigure {
         file: format!("validate_{}.png", v.name),
         title: format!("Cross-record validation on {}", v.name),
         caption: format!(
             "{}: the models fitted here, simulated over that record from rest (dashed; measured in grey on \
-             top): RMSE {} {}, {} {} (the output's standard deviation is {}).",
+             top): {} (the output's standard deviation is {}).",
             v.name,
-            c.names.plain,
-            fmt(rms_between(measured, &series[0])),
-            c.names.after,
-            fmt(rms_between(measured, &series[1])),
+            model_errors(&series).join("; "),
             fmt(v.result.y_std)
         ),
         panels: panel("", input.columns[0], input.columns[2], series),
@@ -493,7 +499,7 @@ pub fn figures(d: &Diagnosis, input: &ReportInput, c: &Curves) -> Vec<ReportFigu
         input
             .validations
             .iter()
-            .map(|v| validation_figure(v, input, c)),
+            .map(|v| validation_figure(d, v, input, c)),
     );
     out
 }

@@ -305,18 +305,23 @@ fn section_effect_paragraph(s: &mut String, d: &Diagnosis) {
     let effect = d.effect();
     match effect {
         Some(c) => {
+            // The errors the effect was judged by: one-step prediction for a noise model, else free run.
+            let judged = c
+                .one_step
+                .map_or((d.base_heldout_rmse, c.heldout_rmse), |o| {
+                    (o.before, o.after)
+                });
             let _ = writeln!(
                 s,
-                "**Effect: `{}`** — {}.\n\nPointed to by the test *{}*. Held-out RMSE {} with the plain model, \
-                 **{}** with the extension ({:.1}x lower; {} error; Diebold-Mariano z = {:.1}); BIC on the fit part \
-                 {} lower.\n",
+                "**Effect: `{}`** — {}.\n\nPointed to by the test *{}*. Held-out {} RMSE {} with the plain model, \
+                 **{}** with the extension ({:.1}x lower; Diebold-Mariano z = {:.1}); BIC on the fit part {} lower.\n",
                 c.id,
                 c.id.describe(),
                 d.pointing_test().unwrap_or("-"),
-                fmt(d.base_heldout_rmse),
-                fmt(c.heldout_rmse),
-                d.base_heldout_rmse / c.heldout_rmse.max(f64::MIN_POSITIVE),
                 c.error_kind,
+                fmt(judged.0),
+                fmt(judged.1),
+                judged.0 / judged.1.max(f64::MIN_POSITIVE),
                 c.heldout_z,
                 fmt(-c.delta_bic)
             );
@@ -325,10 +330,12 @@ fn section_effect_paragraph(s: &mut String, d: &Diagnosis) {
                     s,
                     "A noise model is judged by one-step-ahead prediction, y(k) - [s(k) + sum phi_i (y(k-i) - s(k-i))] \
                      with s the simulated output: held-out one-step error {} before (the plain model's predictor \
-                     is its simulation) and {} after. The errors above are free-run simulation errors, as \
-                     everywhere in this report.\n",
+                     is its simulation) and {} after. Its free-run simulation error, which every other held-out \
+                     error of this report is, goes from {} to {}.\n",
                     fmt(o.before),
-                    fmt(o.after)
+                    fmt(o.after),
+                    fmt(d.base_heldout_rmse),
+                    fmt(c.heldout_rmse)
                 );
             }
         }

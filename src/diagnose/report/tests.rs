@@ -233,12 +233,24 @@ fn check_validation(case: &Case) {
     let f = figure(&figs, "validate_itself.png");
     let p = &f.panels[0];
     let measured = p.series.last().unwrap();
-    for (i, want) in [v[0].result.rmse_before, v[0].result.rmse_after]
-        .iter()
-        .enumerate()
-    {
-        assert!(close(rms_between(measured, &p.series[i]), *want));
-        assert!(f.caption.contains(&fmt(*want)));
+    let models = &p.series[..p.series.len() - 1];
+    let wanted = [v[0].result.rmse_before, v[0].result.rmse_after];
+    assert_eq!(
+        models.len(),
+        if v[0].result.before == v[0].result.after {
+            1
+        } else {
+            2
+        }
+    );
+    for (s, want) in models.iter().zip(wanted) {
+        assert!(close(rms_between(measured, s), want));
+        assert!(f.caption.contains(&format!(
+            "{} ({}",
+            s.label,
+            if s.color == 3 { "red" } else { "blue" }
+        )));
+        assert!(f.caption.contains(&fmt(want)));
     }
     assert!(f.caption.contains(&names.plain));
 }
