@@ -328,7 +328,7 @@ fn correlated<'c>(d: &Diagnosis, c: &'c Curves) -> Vec<(String, &'c [f64], usize
 }
 
 /// Autocorrelation and residual-input cross-correlation on the fit part, of every residual of
-/// [`correlated`], with the 95% bands of a white residual.
+/// `correlated`, with the 95% bands of a white residual.
 pub fn correlations_figure(d: &Diagnosis, input: &ReportInput, c: &Curves) -> ReportFigure {
     let nf = d.n_fit;
     let lags = usable_lags(d.config.lags, nf);
