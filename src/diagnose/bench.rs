@@ -184,6 +184,7 @@ pub(crate) mod tests {
             decimate: 1,
             command: None,
             validations: &[],
+            warnings: &[],
         };
         let md = crate::diagnose::report::write_report(&dir, d, &input).unwrap();
         let text = std::fs::read_to_string(&md).unwrap();

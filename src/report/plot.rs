@@ -20,6 +20,7 @@
 //! .unwrap();
 //! ```
 
+use std::borrow::Cow;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
@@ -75,7 +76,7 @@ pub enum SeriesStyle {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Series<'a> {
     /// Legend text; an empty label leaves the series out of the legend.
-    pub label: &'a str,
+    pub label: Cow<'a, str>,
     pub points: Vec<(f64, f64)>,
     pub style: SeriesStyle,
     /// Index into [`PALETTE`] (modulo its length).
@@ -83,9 +84,14 @@ pub struct Series<'a> {
 }
 
 impl<'a> Series<'a> {
-    pub fn new(label: &'a str, points: Vec<(f64, f64)>, style: SeriesStyle, color: usize) -> Self {
+    pub fn new(
+        label: impl Into<Cow<'a, str>>,
+        points: Vec<(f64, f64)>,
+        style: SeriesStyle,
+        color: usize,
+    ) -> Self {
         Self {
-            label,
+            label: label.into(),
             points,
             style,
             color,
@@ -93,17 +99,17 @@ impl<'a> Series<'a> {
     }
 
     /// A solid line in colour 0.
-    pub fn line(label: &'a str, points: Vec<(f64, f64)>) -> Self {
+    pub fn line(label: impl Into<Cow<'a, str>>, points: Vec<(f64, f64)>) -> Self {
         Self::new(label, points, SeriesStyle::Line, 0)
     }
 
     /// Markers in colour 0.
-    pub fn points(label: &'a str, points: Vec<(f64, f64)>) -> Self {
+    pub fn points(label: impl Into<Cow<'a, str>>, points: Vec<(f64, f64)>) -> Self {
         Self::new(label, points, SeriesStyle::Points, 0)
     }
 
     /// A dashed line in colour 0.
-    pub fn dashed(label: &'a str, points: Vec<(f64, f64)>) -> Self {
+    pub fn dashed(label: impl Into<Cow<'a, str>>, points: Vec<(f64, f64)>) -> Self {
         Self::new(label, points, SeriesStyle::Dashed, 0)
     }
 
@@ -391,7 +397,7 @@ fn draw_panel<DB: DrawingBackend>(
         .collect();
     let wanted = labelled
         .iter()
-        .map(|s| text_width(&body, s.label))
+        .map(|s| text_width(&body, &s.label))
         .max()
         .map_or(0, |w| w + LEGEND_CHROME);
     let (w, h) = body.dim_in_pixel();
@@ -425,8 +431,10 @@ fn draw_data<DB: DrawingBackend>(
         panel.log_y,
     );
     let ticks = (
-        TickLabels::of(&xr, panel.log_x),
-        TickLabels::of(&yr, panel.log_y),
+        TickLabels::of(&xr, panel.log_x)
+            .whole_numbers(all_whole(panel.series.iter().map(|s| &s.points), |p| p.0)),
+        TickLabels::of(&yr, panel.log_y)
+            .whole_numbers(all_whole(panel.series.iter().map(|s| &s.points), |p| p.1)),
     );
     match (panel.log_x, panel.log_y) {
         (false, false) => draw_chart(area, panel, ticks, xr, yr),
@@ -434,6 +442,21 @@ fn draw_data<DB: DrawingBackend>(
         (false, true) => draw_chart(area, panel, ticks, xr, yr.log_scale()),
         (true, true) => draw_chart(area, panel, ticks, xr.log_scale(), yr.log_scale()),
     }
+}
+
+/// Whether the coordinate `of` of every finite point is a whole number (and there is one at least).
+fn all_whole<'p>(
+    series: impl Iterator<Item = &'p Vec<(f64, f64)>>,
+    of: impl Fn(&(f64, f64)) -> f64,
+) -> bool {
+    let mut any = false;
+    for v in series.flatten().map(of).filter(|v| v.is_finite()) {
+        if v.fract() != 0.0 {
+            return false;
+        }
+        any = true;
+    }
+    any
 }
 
 /// The legend column: for each labelled series its mark and its label, wrapped to the column's width,
@@ -447,7 +470,7 @@ fn draw_legend<DB: DrawingBackend>(
     let text_w = w.saturating_sub(LEGEND_CHROME).max(1);
     let rows: Vec<(&Series, Vec<String>)> = labelled
         .iter()
-        .map(|s| (*s, wrap(s.label, text_w, |t| text_width(area, t))))
+        .map(|s| (*s, wrap(&s.label, text_w, |t| text_width(area, t))))
         .collect();
     let lines: u32 = rows.iter().map(|(_, l)| l.len() as u32).sum();
     let top = CHART_MARGIN as i32;
@@ -502,6 +525,9 @@ struct TickLabels {
     /// Span of a linear axis (ticks much smaller than it print as 0); 0 on a log axis, whose ticks are
     /// never zero.
     span: f64,
+    /// Label whole numbers only (a linear axis whose data are all whole numbers: steps, lags, counts),
+    /// so that an axis of whole steps never shows 0.5.
+    whole: bool,
 }
 
 impl TickLabels {
@@ -510,17 +536,31 @@ impl TickLabels {
             Self {
                 thin: range.end / range.start >= 10.0,
                 span: 0.0,
+                whole: false,
             }
         } else {
             Self {
                 thin: false,
                 span: range.end - range.start,
+                whole: false,
             }
         }
     }
 
-    /// [`tick`], or nothing when thinning and `v` is not 1, 2, 3 or 5 times a power of ten.
+    /// The same labels, whole numbers only when `whole` (and the axis is linear).
+    fn whole_numbers(self, whole: bool) -> Self {
+        Self {
+            whole: whole && self.span > 0.0,
+            ..self
+        }
+    }
+
+    /// [`tick`], or nothing when thinning and `v` is not 1, 2, 3 or 5 times a power of ten, or on a
+    /// whole-number axis when `v` is not a whole number.
     fn label(&self, v: f64) -> String {
+        if self.whole && (v - v.round()).abs() > ZERO_TICK * self.span {
+            return String::new();
+        }
         if self.thin && v > 0.0 {
             let m = v / 10f64.powf(v.log10().floor());
             if ![1.0, 2.0, 3.0, 5.0, 10.0]
@@ -665,6 +705,30 @@ mod tests {
         // a log axis never snaps a small tick to zero, however wide it is
         let wide = TickLabels::of(&(1e-14..1e3), true);
         assert_eq!(wide.label(1e-12), "1.00e-12");
+    }
+
+    /// An axis whose data are whole numbers (steps 0, 1, 2) labels whole ticks only: 0.5 and 1.5 are
+    /// left blank, 0 and 1 printed; data with a fraction anywhere keep every tick.
+    #[test]
+    fn whole_number_axes_label_whole_ticks_only() {
+        let steps = [vec![(0.0, 0.3), (1.0, 0.25)], vec![(0.0, 0.1), (2.0, 0.1)]];
+        assert!(all_whole(steps.iter(), |p| p.0));
+        assert!(!all_whole(steps.iter(), |p| p.1));
+        assert!(!all_whole([vec![(f64::NAN, 1.0)]].iter(), |p| p.0));
+        let x = TickLabels::of(&(-0.1..2.1), false).whole_numbers(true);
+        let shown: Vec<String> = [0.0, 0.5, 1.0, 1.5, 2.0]
+            .iter()
+            .map(|&v| x.label(v))
+            .collect();
+        assert_eq!(shown, ["0", "", "1", "", "2"]);
+        let plain = TickLabels::of(&(-0.1..2.1), false).whole_numbers(false);
+        assert_eq!(plain.label(0.5), "0.5");
+        // a log axis is never a whole-number one
+        assert!(
+            !TickLabels::of(&(1.0..100.0), true)
+                .whole_numbers(true)
+                .whole
+        );
     }
 
     #[test]
@@ -830,7 +894,7 @@ mod tests {
                 .count();
             assert!(mark > 20, "{size:?}: no legend mark right of the data");
             // without a label there is no legend, and the data take its room
-            panel.series[0].label = "";
+            panel.series[0].label = "".into();
             let bare = longest_runs(&render(&panel, size), size, rgb);
             let bare_widest = bare.iter().map(|r| r.1).max().unwrap();
             assert!(

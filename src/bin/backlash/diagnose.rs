@@ -85,11 +85,17 @@ pub fn run(args: &DiagnoseArgs, argv: &[String]) -> Result<()> {
     progress.finish_and_clear();
     let d = d?;
     let validations = validate(args, &d)?;
+    let mut out = diagnosis_json(&d, &rec.u, rec.sample_period(), rec.decimate);
+    let warnings: Vec<String> = out["warnings"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|w| w.as_str().map(str::to_owned))
+        .collect();
     let report = match &args.report {
-        Some(dir) => Some(report(args, argv, dir, &rec, &d, &validations)?),
+        Some(dir) => Some(report(args, argv, dir, &rec, &d, &validations, &warnings)?),
         None => None,
     };
-    let mut out = diagnosis_json(&d, &rec.u, rec.sample_period(), rec.decimate);
     out["validate_on"] = validation_json(args, &validations)?;
     out["report"] = json!(report.as_ref().map(|p| p.display().to_string()));
     if args.json {
@@ -145,6 +151,7 @@ fn report(
     rec: &Record,
     d: &Diagnosis,
     validations: &[Validation],
+    warnings: &[String],
 ) -> Result<PathBuf> {
     // The command as a user would type it (the program's own path replaced by its name).
     let command = std::iter::once("backlash")
@@ -161,6 +168,7 @@ fn report(
         columns: [rec.label(0), rec.label(1), rec.label(2)],
         command: Some(command),
         validations,
+        warnings,
     };
     write_report(dir, d, &input)
         .with_context(|| format!("{}: cannot write the report", dir.display()))

@@ -419,9 +419,9 @@ pub(super) fn bode_plots(
             .collect();
         let color = 3 + i;
         mag.push(
-            Series::points(label, points.iter().map(|p| (p.omega, p.gain)).collect()).color(color),
+            Series::points(*label, points.iter().map(|p| (p.omega, p.gain)).collect()).color(color),
         );
-        ph.push(Series::points(label, phases).color(color));
+        ph.push(Series::points(*label, phases).color(color));
     }
     let mag_path = dir.join("bode_magnitude.png");
     line_plot(

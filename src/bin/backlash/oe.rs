@@ -122,9 +122,9 @@ fn write_fit_outputs(args: &OeArgs, rec: &Record, run: &OeRun) -> Result<()> {
             rec.label(0),
             rec.label(2),
             &[
-                Series::points(&format!("measured {}", rec.label(2)), pts(y)).color(7),
+                Series::points(format!("measured {}", rec.label(2)), pts(y)).color(7),
                 Series::line("OE model", pts(&w)).color(0),
-                Series::dashed(&format!("start ({})", f.start_method), pts(&w0)).color(1),
+                Series::dashed(format!("start ({})", f.start_method), pts(&w0)).color(1),
             ],
             Axes::LINEAR,
         )?;

@@ -2,7 +2,7 @@
 //! BIC, fitted by least squares on the residual with the deterministic part kept; judged by one-step-ahead
 //! prediction (the simulation is unchanged).
 
-use crate::diagnose::effects::figure::{Figure, pts};
+use crate::diagnose::effects::figure::{Figure, fmt, outside, pts};
 use crate::diagnose::effects::rig::{Draw, Rig};
 use crate::diagnose::effects::{Effect, EffectId, Fitted, Parameters, Plan, StartContext};
 use crate::diagnose::fit::lm::{bic, cost_of};
@@ -88,37 +88,52 @@ impl Effect for ColouredNoise {
         })
     }
 
-    /// The residual's autocorrelation, the fitted AR model's, and the one-step prediction errors'.
+    /// The plain model's residual's autocorrelation, the fitted AR model's, and that of the one-step
+    /// prediction errors of the model with the noise model.
     fn evidence(&self, fig: &Figure) -> Result<String, PlotError> {
-        let Some(ext) = fig.model.extension(ID) else {
+        let (Some(ext), Some(pred)) = (fig.model.extension(ID), fig.e1_pred) else {
             return super::figure::generic(fig, ID);
         };
         let (nf, lags) = (fig.n_fit, fig.lags);
         let band = residual::white_band(nf);
         let lagx: Vec<f64> = (1..=lags).map(|l| l as f64).collect();
         let acf0 = residual::autocorrelation(&fig.e0[..nf], lags);
-        let acf1 = residual::autocorrelation(&fig.e1[..nf], lags);
+        let acf1 = residual::autocorrelation(&pred[..nf], lags);
         let model = ar_acf(&ext.theta, lags);
         line_plot(
             fig.path,
             "Evidence for coloured-noise: autocorrelation of the output error",
-            "lag",
+            "lag [samples]",
             "r",
             &[
-                Series::points("declared model's residual", pts(&lagx, &acf0)).color(3),
+                Series::points(
+                    format!("{}: y - simulation", fig.plain_label),
+                    pts(&lagx, &acf0),
+                )
+                .color(3),
                 Series::line("fitted AR noise model", pts(&lagx, &model)).color(1),
-                Series::points("one-step prediction errors", pts(&lagx, &acf1)).color(0),
+                Series::points(
+                    format!("{}: y - one-step prediction", fig.after_label),
+                    pts(&lagx, &acf1),
+                )
+                .color(0),
                 Series::dashed("95% band", vec![(1.0, band), (lags as f64, band)]).color(7),
                 Series::dashed("", vec![(1.0, -band), (lags as f64, -band)]).color(7),
             ],
             Axes::LINEAR,
         )?;
         Ok(format!(
-            "Pointing test: {}. The residual is correlated over many lags (red) in the way an AR({}) \
-             disturbance is (orange); the one-step prediction errors of the model with that noise model are \
-             white (blue).",
+            "Pointing test: {}. The residual is correlated over many lags (red; lag 1: {}) in the way an AR({}) \
+             disturbance is (orange; lag 1: {}); the one-step prediction errors of the model with that noise \
+             model (blue; lag 1: {}) have {} of {} lags outside the white band +-{}.",
             fig.test,
-            ext.theta.len()
+            fmt(acf0[0]),
+            ext.theta.len(),
+            fmt(model[0]),
+            fmt(acf1[0]),
+            outside(&acf1, band),
+            lags,
+            fmt(band)
         ))
     }
 
@@ -206,6 +221,9 @@ mod tests {
     /// evidence figure in the report.
     #[test]
     fn named_in_held_out_records() {
-        crate::diagnose::bench::tests::check_effect(ID, "disturbance is (orange)");
+        crate::diagnose::bench::tests::check_effect(
+            ID,
+            "one-step prediction errors of the model with that noise",
+        );
     }
 }

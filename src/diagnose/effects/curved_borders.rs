@@ -1,7 +1,7 @@
 //! `curved-borders`: quadratic and cubic terms on both borders, upper = s + p2 s^2 + p3 s^3 (s = x - c1),
 //! lower = m2 s + q2 s^2 + q3 s^3 (s = x + c2).
 
-use crate::diagnose::effects::figure::Figure;
+use crate::diagnose::effects::figure::{Figure, fmt};
 use crate::diagnose::effects::rig::{Draw, Rig};
 use crate::diagnose::effects::{Effect, EffectId, Fitted, Parameters, Plan, StartContext};
 use crate::diagnose::fit::model::{BaseModel, Element, Elements, Extension, Scales};
@@ -83,43 +83,48 @@ impl Effect for CurvedBorders {
         })
     }
 
-    /// The declared model's residual on engaged samples against its x_hat, with the fitted curvatures.
+    /// The plain model's residual on engaged samples (fit part) against its x_hat, and what the extension
+    /// changes at those same samples (the extended model's output minus the plain model's), both as their
+    /// means over bins of x_hat: the curves cover only where there are samples, in the samples' units.
     fn evidence(&self, fig: &Figure) -> Result<String, PlotError> {
-        let Some(ext) = fig.model.extension(ID) else {
+        if fig.model.extension(ID).is_none() {
             return super::figure::generic(fig, ID);
-        };
-        let (upper, lower) = ([ext.theta[0], ext.theta[1]], [ext.theta[2], ext.theta[3]]);
-        let (mut up, mut dn) = (Vec::new(), Vec::new());
-        let sim = fig.declared;
-        for ((m, x), e) in sim.mode.iter().zip(&sim.x).zip(fig.e0).take(fig.n_fit) {
-            match m {
-                Mode::Up => up.push((*x, *e)),
-                Mode::Down => dn.push((*x, *e)),
-                Mode::Held => {}
-            }
         }
-        let base = &fig.model.base;
+        let sim = fig.declared;
+        let (mut up, mut dn, mut up_fit, mut dn_fit) = (vec![], vec![], vec![], vec![]);
+        for k in 0..fig.n_fit {
+            let (x, added) = (sim.x[k], fig.output[k] - sim.y[k]);
+            match sim.mode[k] {
+                Mode::Up => (up.push((x, fig.e0[k])), up_fit.push((x, added))),
+                Mode::Down => (dn.push((x, fig.e0[k])), dn_fit.push((x, added))),
+                Mode::Held => ((), ()),
+            };
+        }
+        let (up_fit, dn_fit) = (binned_means(&up_fit, BINS), binned_means(&dn_fit, BINS));
+        let (up_mean, dn_mean) = (binned_means(&up, BINS), binned_means(&dn, BINS));
         line_plot(
             fig.path,
             "Evidence for curved-borders: residual against the linear block's output",
             &format!("x_hat (the linear block's output, from {})", fig.columns[1]),
-            "residual on the border",
+            &format!("residual of {} on the border", fig.columns[2]),
             &[
-                Series::points("upper border samples", up.clone()).color(1),
-                Series::points("lower border samples", dn.clone()).color(2),
-                Series::line(
-                    "fitted upper curvature",
-                    border_curve(&upper, -base.c1, &up),
-                )
-                .color(1),
-                Series::line("fitted lower curvature", border_curve(&lower, base.c2, &dn)).color(2),
+                Series::points("upper border: residual samples", up).color(1),
+                Series::points("lower border: residual samples", dn).color(2),
+                Series::line("upper: mean residual per bin", up_mean.clone()).color(5),
+                Series::line("lower: mean residual per bin", dn_mean.clone()).color(4),
+                Series::dashed("upper: what the curvature adds", up_fit.clone()).color(5),
+                Series::dashed("lower: what the curvature adds", dn_fit.clone()).color(4),
             ],
             Axes::LINEAR,
         )?;
         Ok(format!(
-            "Pointing test: {}. The declared model's residual on engaged samples against its x_hat: straight \
-             borders leave no trend; lines: the quadratic and cubic terms the extension fitted.",
-            fig.test
+            "Pointing test: {}. The {}'s residual on engaged samples (fit part) against its x_hat: straight \
+             borders leave no trend. Solid: its mean over {BINS} bins of x_hat; dashed: what the extension \
+             changes at the same samples, also per bin (RMS distance between the two: upper {}, lower {}).",
+            fig.test,
+            fig.plain_label,
+            fmt(rms_distance(&up_mean, &up_fit)),
+            fmt(rms_distance(&dn_mean, &dn_fit))
         ))
     }
 
@@ -159,25 +164,35 @@ impl Effect for CurvedBorders {
     }
 }
 
-/// A fitted border curvature `s^2 (coef[0] + coef[1] s)`, `s = x + shift`, at 101 evenly spaced x over the
-/// range the border's `samples` (x, residual) cover (nothing when there are none: a curve is never drawn
-/// where the data do not reach).
-fn border_curve(coef: &[f64; 2], shift: f64, samples: &[(f64, f64)]) -> Vec<(f64, f64)> {
-    if samples.is_empty() {
-        return Vec::new();
-    }
-    let (xmin, xmax) = samples
+/// Bins of x_hat the evidence averages over.
+const BINS: usize = 20;
+
+/// The means of `points` (x, v) over `bins` equal bins of the x they cover, at each non-empty bin's mean x
+/// (nothing for no points: a curve is never drawn where the data do not reach).
+fn binned_means(points: &[(f64, f64)], bins: usize) -> Vec<(f64, f64)> {
+    let (lo, hi) = points
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| {
             (a.min(*x), b.max(*x))
         });
-    (0..=100)
-        .map(|i| {
-            let x = xmin + (xmax - xmin) * i as f64 / 100.0;
-            let s = x + shift;
-            (x, s * s * (coef[0] + s * coef[1]))
-        })
+    let mut sums = vec![(0.0, 0.0, 0usize); bins.max(1)];
+    for (x, v) in points {
+        let i = if hi > lo {
+            (((x - lo) / (hi - lo) * bins as f64) as usize).min(bins - 1)
+        } else {
+            0
+        };
+        sums[i] = (sums[i].0 + x, sums[i].1 + v, sums[i].2 + 1);
+    }
+    sums.into_iter()
+        .filter(|s| s.2 > 0)
+        .map(|(x, v, c)| (x / c as f64, v / c as f64))
         .collect()
+}
+
+/// RMS of the differences of two curves' values, point by point.
+fn rms_distance(a: &[(f64, f64)], b: &[(f64, f64)]) -> f64 {
+    crate::stats::rms(a.iter().zip(b).map(|(p, q)| p.1 - q.1))
 }
 
 #[cfg(test)]
@@ -185,23 +200,19 @@ mod tests {
     use super::*;
     use crate::diagnose::fit::starts::tests::{context, paper};
 
-    /// A border's fitted curve spans exactly the x its samples cover, in 100 equal steps, with the
-    /// curvature's value at each x; no samples, no curve.
+    /// The binned means cover exactly the x the points cover: each bin's mean x and mean value, empty bins
+    /// left out; no points, no curve.
     #[test]
-    fn border_curve_spans_the_samples() {
-        let samples = [(3.0, 0.1), (-1.0, 0.2), (1.0, -0.3)];
-        let got = border_curve(&[2.0, 0.5], 1.0, &samples);
-        assert_eq!(got.len(), 101);
-        assert_eq!(got[0].0, -1.0);
-        assert_eq!(got[50].0, 1.0);
-        assert_eq!(got[100].0, 3.0);
-        assert!(
-            got.windows(2)
-                .all(|w| (w[1].0 - w[0].0 - 0.04).abs() < 1e-12)
+    fn binned_means_stay_within_the_samples() {
+        let points = [(0.0, 1.0), (0.1, 3.0), (1.5, -1.0), (2.0, -3.0), (1.0, 5.0)];
+        let got = binned_means(&points, 4);
+        assert_eq!(got, vec![(0.05, 2.0), (1.0, 5.0), (1.75, -2.0)]);
+        assert!(binned_means(&[], 4).is_empty());
+        assert_eq!(binned_means(&[(1.0, 2.0), (1.0, 4.0)], 4), vec![(1.0, 3.0)]);
+        assert_eq!(
+            rms_distance(&[(0.0, 1.0), (1.0, 2.0)], &[(0.0, 2.0), (1.0, 1.0)]),
+            1.0
         );
-        // At x = 1: s = 2, s^2 (2 + 0.5 s) = 4 * 3 = 12.
-        assert!((got[50].1 - 12.0).abs() < 1e-12);
-        assert!(border_curve(&[2.0, 0.5], 1.0, &[]).is_empty());
     }
 
     #[test]

@@ -112,9 +112,9 @@ impl Effect for DeadZone {
             fig.path,
             "Evidence for dead-zone: residual against the input that drives it (fit part)",
             &format!("{} (delayed by {d} samples)", fig.columns[1]),
-            "residual",
+            &format!("residual of {}", fig.columns[2]),
             &[
-                Series::points("declared model", pts(u, e0)).color(3),
+                Series::points(fig.plain_label, pts(u, e0)).color(3),
                 Series::points(fig.after_label, pts(u, e1)).color(0),
                 Series::dashed("fitted dead zone", vec![(-width, lo), (-width, hi)]).color(1),
                 Series::dashed("", vec![(width, lo), (width, hi)]).color(1),
@@ -122,10 +122,11 @@ impl Effect for DeadZone {
             Axes::LINEAR,
         )?;
         Ok(format!(
-            "Pointing test: {}. The declared model's residual against the input that drives the linear \
-             block: small inputs move the output less than the model says; dashed: the dead zone the fit \
-             found (+-{}), with which the residual no longer depends on the input.",
+            "Pointing test: {}. The {}'s residual against the input that drives the linear block: small \
+             inputs move the output less than the model says; dashed: the dead zone the fit found (+-{}), with \
+             which the residual no longer depends on the input.",
             fig.test,
+            fig.plain_label,
             fmt(width)
         ))
     }

@@ -7,8 +7,9 @@ use crate::diagnose::fit::model::{EffectModel, Simulation};
 use crate::diagnose::id::EffectId;
 use crate::diagnose::residual;
 use crate::report::plot::{Axes, PlotError, Series, line_plot};
+use crate::stats::{mean, quantile};
 
-/// What an evidence figure is drawn from: the record, the declared model and the first effect found.
+/// What an evidence figure is drawn from: the record, the plain model and the first effect found.
 pub struct Figure<'a> {
     /// Where the PNG goes.
     pub path: &'a Path,
@@ -23,12 +24,16 @@ pub struct Figure<'a> {
     pub y: &'a [f64],
     /// The CSV's names of the time, input and output columns (the axes).
     pub columns: [&'a str; 3],
-    /// The declared model's simulation and its residual over the record.
+    /// The plain model's simulation (before any effect; of the declared or the chosen structure), its name
+    /// in legends and its residual over the record.
     pub declared: &'a Simulation,
+    pub plain_label: &'a str,
     pub e0: &'a [f64],
-    /// The final model's residual over the record.
+    /// The effect's model's residual y - simulation over the record.
     pub e1: &'a [f64],
-    /// The final model's name in legends.
+    /// With a noise model: its residual y - one-step prediction over the record.
+    pub e1_pred: Option<&'a [f64]>,
+    /// The effect's model's name in legends.
     pub after_label: &'a str,
     /// The effect's fitted model and its output over the record.
     pub model: &'a EffectModel,
@@ -47,18 +52,16 @@ pub fn fmt(v: f64) -> String {
     crate::report::number(v)
 }
 
-/// The measured output, the declared model's and (with `after`) the extended model's against the input on
-/// the held-out part, titled `title`.
+/// The measured output, the plain model's and (with `after`) the extended model's against the input on the
+/// held-out part, titled `title`; the measured points drawn last (on top).
 pub fn output_against_input(fig: &Figure, title: &str, after: bool) -> Result<(), PlotError> {
     let (nf, n) = (fig.n_fit, fig.n);
     let u = &fig.u[nf..n];
-    let mut series = vec![
-        Series::points("measured", pts(u, &fig.y[nf..n])).color(7),
-        Series::points("declared model", pts(u, &fig.declared.y[nf..n])).color(3),
-    ];
+    let mut series = vec![Series::points(fig.plain_label, pts(u, &fig.declared.y[nf..n])).color(3)];
     if after {
         series.push(Series::points(fig.after_label, pts(u, &fig.output[nf..n])).color(0));
     }
+    series.push(Series::points("measured", pts(u, &fig.y[nf..n])).color(7));
     line_plot(
         fig.path,
         title,
@@ -78,8 +81,8 @@ pub fn effect_against_input(fig: &Figure, effect: &str) -> Result<(), PlotError>
     )
 }
 
-/// A stretch of the record over time, samples `k0..k1`: measured (as points or as a line), the declared
-/// model and the extended one.
+/// A stretch of the record over time, samples `k0..k1`: the plain model and the extended one (dashed), and
+/// on top the measured output (as points or as a line).
 pub fn over_time(
     fig: &Figure,
     title: &str,
@@ -99,9 +102,9 @@ pub fn over_time(
         fig.columns[0],
         fig.columns[2],
         &[
+            Series::dashed(fig.plain_label, pts(t, &fig.declared.y[k0..k1])).color(3),
+            Series::dashed(fig.after_label, pts(t, &fig.output[k0..k1])).color(0),
             measured.color(7),
-            Series::line("declared model", pts(t, &fig.declared.y[k0..k1])).color(3),
-            Series::line(fig.after_label, pts(t, &fig.output[k0..k1])).color(0),
         ],
         Axes::LINEAR,
     )
@@ -117,7 +120,7 @@ pub fn generic(fig: &Figure, id: EffectId) -> Result<String, PlotError> {
     ))
 }
 
-/// The declared and the final model's residual against past inputs on the fit part, with the 95% band;
+/// The plain and the effect's model's residual against past inputs on the fit part, with the 95% band;
 /// returns the caption (the evidence of a missing term or delay in the linear block).
 pub fn input_correlation(fig: &Figure) -> Result<String, PlotError> {
     let (nf, lags) = (fig.n_fit, fig.lags);
@@ -131,7 +134,7 @@ pub fn input_correlation(fig: &Figure) -> Result<String, PlotError> {
         "lag",
         "r_eu",
         &[
-            Series::points("declared model", pts(&lag0, &cc0.r)).color(3),
+            Series::points(fig.plain_label, pts(&lag0, &cc0.r)).color(3),
             Series::points(fig.after_label, pts(&lag0, &cc1.r)).color(0),
             Series::dashed("95% band", vec![(0.0, band), (lags as f64, band)]).color(7),
             Series::dashed("", vec![(0.0, -band), (lags as f64, -band)]).color(7),
@@ -139,10 +142,81 @@ pub fn input_correlation(fig: &Figure) -> Result<String, PlotError> {
         Axes::LINEAR,
     )?;
     Ok(format!(
-        "Pointing test: {}. The declared model's residual still depends on past inputs (red points outside \
-         the band): the linear block misses a term or a delay; the chosen structure leaves none (blue).",
-        fig.test
+        "Pointing test: {}. The {}'s residual depends on past inputs where its red points leave the band \
+         ({} of {} lags outside): the linear block misses a term or a delay; {} of {} lags outside with the \
+         extension (blue).",
+        fig.test,
+        fig.plain_label,
+        outside(&cc0.r, band),
+        cc0.r.len(),
+        outside(&cc1.r, band),
+        cc1.r.len()
     ))
+}
+
+/// The share of the held-out samples at each end of the measured output that [`at_extremes`] averages over.
+pub const EXTREME_SHARE: f64 = 0.02;
+
+/// Where the measured output (held-out part) is at its extremes (at or above its 98% quantile, at or below
+/// its 2%), the mean of `model - y` there: (top, bottom). Positive at the top / negative at the bottom: the
+/// model goes beyond the measured extreme.
+pub fn at_extremes(fig: &Figure, model: &[f64]) -> (f64, f64) {
+    let (nf, n) = (fig.n_fit, fig.n);
+    let y = &fig.y[nf..n];
+    let (Some(hi), Some(lo)) = (quantile(y, 1.0 - EXTREME_SHARE), quantile(y, EXTREME_SHARE))
+    else {
+        return (0.0, 0.0);
+    };
+    let diff = |keep: &dyn Fn(f64) -> bool| {
+        let d: Vec<f64> = y
+            .iter()
+            .zip(&model[nf..n])
+            .filter(|(v, _)| keep(**v))
+            .map(|(v, m)| m - v)
+            .collect();
+        mean(&d)
+    };
+    (diff(&|v| v >= hi), diff(&|v| v <= lo))
+}
+
+/// In words, what `at_extremes` found for a model: "goes above it by 0.12 at the top and stays above it by
+/// 0.05 at the bottom".
+pub fn extremes_in_words((top, bottom): (f64, f64)) -> String {
+    let side = |v: f64, beyond: &str, short: &str| {
+        if v == 0.0 {
+            "meets it".to_string()
+        } else {
+            format!(
+                "{} it by {}",
+                if v > 0.0 { beyond } else { short },
+                fmt(v.abs())
+            )
+        }
+    };
+    format!(
+        "{} at the top and {} at the bottom",
+        side(top, "goes above", "stays below"),
+        side(-bottom, "goes below", "stays above")
+    )
+}
+
+/// The caption of an output-against-input evidence figure: how the plain and the effect's model meet the
+/// measured extremes, computed from the plotted values.
+pub fn extremes_caption(fig: &Figure) -> String {
+    format!(
+        "Where the measured output is at its extremes (its top and bottom {:.0}% in the held-out part), the {} \
+         {} on average, and {} {}.",
+        100.0 * EXTREME_SHARE,
+        fig.plain_label,
+        extremes_in_words(at_extremes(fig, &fig.declared.y)),
+        fig.after_label,
+        extremes_in_words(at_extremes(fig, fig.output))
+    )
+}
+
+/// How many of the correlations `r` lie outside the band `+-band`.
+pub fn outside(r: &[f64], band: f64) -> usize {
+    r.iter().filter(|v| v.abs() > band).count()
 }
 
 #[cfg(test)]
@@ -155,5 +229,23 @@ mod tests {
     fn points_pair_every_sample_in_order() {
         let got = pts(&[0.5, 1.5, 2.5], &[-1.0, 4.0, 9.0]);
         assert_eq!(got, vec![(0.5, -1.0), (1.5, 4.0), (2.5, 9.0)]);
+    }
+
+    /// The words follow the numbers' signs: a model above the measured top goes above it, one below the
+    /// measured bottom goes below it, and the reverse stays short.
+    #[test]
+    fn extremes_in_words_follow_the_signs() {
+        assert_eq!(
+            extremes_in_words((1.9, 0.5)),
+            "goes above it by 1.9000 at the top and stays above it by 0.5000 at the bottom"
+        );
+        assert_eq!(
+            extremes_in_words((-1.9, -0.5)),
+            "stays below it by 1.9000 at the top and goes below it by 0.5000 at the bottom"
+        );
+        assert_eq!(
+            extremes_in_words((0.0, 0.0)),
+            "meets it at the top and meets it at the bottom"
+        );
     }
 }

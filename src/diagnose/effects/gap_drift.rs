@@ -85,7 +85,7 @@ impl Effect for GapDrift {
         })
     }
 
-    /// Running means of the declared model's residual on each border, and the drift the fit found.
+    /// Running means of the plain model's residual on each border, and the drift the fit found.
     fn evidence(&self, fig: &Figure) -> Result<String, PlotError> {
         let Some(ext) = fig.model.extension(ID) else {
             return super::figure::generic(fig, ID);
@@ -103,7 +103,7 @@ impl Effect for GapDrift {
         let (lu, ld) = (centred_on(up_line, &ru), centred_on(dn_line, &rd));
         line_plot(
             fig.path,
-            "Evidence for gap-drift: residual of the declared model on each border",
+            "Evidence for gap-drift: residual of the plain model on each border",
             fig.columns[0],
             "running mean of the residual",
             &[
@@ -115,10 +115,11 @@ impl Effect for GapDrift {
             Axes::LINEAR,
         )?;
         Ok(format!(
-            "Pointing test: {}. Running mean ({win} samples) of the declared model's residual on the upper and \
-             lower borders; with fixed gaps both would stay at zero. Dashed: the change the fitted drift \
+            "Pointing test: {}. Running mean ({win} samples) of the {}'s residual on the upper and lower \
+             borders; with fixed gaps both would stay at zero. Dashed: the change the fitted drift \
              predicts (c1 rate {}, c2 rate {} per sample).",
             fig.test,
+            fig.plain_label,
             fmt(c1_rate),
             fmt(c2_rate)
         ))

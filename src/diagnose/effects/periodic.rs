@@ -100,7 +100,7 @@ impl Effect for Periodic {
         })
     }
 
-    /// The periodogram of the declared model's residual with the fitted frequency.
+    /// The periodogram of the plain model's residual with the fitted frequency.
     fn evidence(&self, fig: &Figure) -> Result<String, PlotError> {
         let Some(ext) = fig.model.extension(ID) else {
             return super::figure::generic(fig, ID);
@@ -119,7 +119,7 @@ impl Effect for Periodic {
             "omega, rad/sample",
             "power",
             &[
-                Series::line("declared model's residual", pts(&w, &p)).color(3),
+                Series::line(format!("{}: residual", fig.plain_label), pts(&w, &p)).color(3),
                 Series::dashed("fitted frequency", vec![(omega, pmin), (omega, pmax)]).color(0),
             ],
             Axes::LOG_LOG,

@@ -1,6 +1,6 @@
 //! `saturation`: the output is clipped, as by end stops: the model output clipped to [lo, hi].
 
-use crate::diagnose::effects::figure::{Figure, effect_against_input};
+use crate::diagnose::effects::figure::{Figure, effect_against_input, extremes_caption};
 use crate::diagnose::effects::rig::{Draw, Rig};
 use crate::diagnose::effects::{Effect, EffectId, Fitted, Parameters, Plan, StartContext};
 use crate::diagnose::fit::model::{BaseModel, EffectModel, Element, Elements, Extension, Scales};
@@ -77,9 +77,9 @@ impl Effect for Saturation {
     fn evidence(&self, fig: &Figure) -> Result<String, PlotError> {
         effect_against_input(fig, ID.as_str())?;
         Ok(format!(
-            "Pointing test: {}. Output against input: the measured output is cut off at its extremes; the \
-             declared model overshoots there, the clipped model does not.",
-            fig.test
+            "Pointing test: {}. Output against input: is the measured output cut off at its extremes? {}",
+            fig.test,
+            extremes_caption(fig)
         ))
     }
 
@@ -130,6 +130,9 @@ mod tests {
     /// evidence figure in the report.
     #[test]
     fn named_in_held_out_records() {
-        crate::diagnose::bench::tests::check_effect(ID, "the clipped model does not");
+        crate::diagnose::bench::tests::check_effect(
+            ID,
+            "is the measured output cut off at its extremes?",
+        );
     }
 }

@@ -44,9 +44,12 @@ pub struct ReportInput<'a> {
     pub u: &'a [f64],
     pub y: &'a [f64],
     pub decimate: usize,
-    /// The CSV's names of the time, input and output columns (the figures' axes).
+    /// The CSV's names of the time, input and output columns with their units where the header gives them
+    /// (`y [kN]`): the figures' axes.
     pub columns: [&'a str; 3],
     /// The command that produced the report (to reproduce it).
     pub command: Option<String>,
+    /// What the record cannot support (the JSON's `warnings`), shown near the top of the report.
+    pub warnings: &'a [String],
     pub validations: &'a [Validation],
 }

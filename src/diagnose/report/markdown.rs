@@ -1,12 +1,18 @@
 //! The diagnosis report for a test engineer: `report.md` and PNG figures in one folder.
 //!
-//! Figures (all against the record's time unless said):
-//! - `heldout.png`: the held-out part, measured output against the declared and the extended model;
-//! - `residual.png`: the residual of both models over the whole record, the fit / held-out split marked;
-//! - `correlations.png`: autocorrelation and residual-input cross-correlation on the fit part, before and
-//!   after, with the 95% bands of a white residual;
-//! - `evidence.png`: the evidence for the chosen effect (what the pointing test saw and what the fit made
-//!   of it); for `null`, the measured output against the input with the declared model;
+//! The model before any effect is the *plain model*, of the structure the user declared or the tool chose
+//! (the report says which); the final model is named by the effects it adds.
+//!
+//! Figures (all against the record's time unless said; each figure's data and caption are one value,
+//! [`ReportFigure`], but the evidence figure, which the chosen effect draws):
+//! - `heldout.png`: the held-out part, the measured output on top of the plain and the final model (dashed);
+//! - `residual.png`: the residuals over the whole record (free run; with a noise model also its one-step
+//!   prediction's), the fit / held-out split marked;
+//! - `correlations.png`: autocorrelation and residual-input cross-correlation of those residuals on the fit
+//!   part, with the 95% bands of a white residual;
+//! - `evidence.png`: the evidence for the first effect (what the pointing test saw and what the fit made
+//!   of it); for `null`, the measured output against the input with the plain model;
+//! - `steps.png`: the held-out error after each step of the loop, free run and (for a noise model) one-step;
 //! - `validate_<name>.png`: for each cross-record validation, measured against both models.
 
 use std::fmt::Write as _;
@@ -14,10 +20,7 @@ use std::path::{Path, PathBuf};
 
 use crate::diagnose::effects::CATALOGUE;
 use crate::diagnose::effects::figure::fmt;
-use crate::diagnose::report::figures::{
-    Curves, correlations_figure, evidence, heldout_figure, residual_figure, steps_plot,
-    validation_figure,
-};
+use crate::diagnose::report::figures::{Curves, Names, ReportFigure, evidence, figures};
 use crate::diagnose::report::input::{ReportError, ReportInput};
 use crate::diagnose::search::decision::DECISION_RULE;
 use crate::diagnose::search::engine::Diagnosis;
@@ -34,22 +37,15 @@ pub fn write_report(
         source,
     })?;
     let c = Curves::new(d, input);
-    let mut figures = vec![
-        heldout_figure(dir, d, input, &c)?,
-        residual_figure(dir, d, input, &c)?,
-        correlations_figure(dir, d, input, &c)?,
-        (
-            "evidence.png".into(),
-            evidence(dir, d, input, &c.e0, &c.e1, &c.after_label)?,
-        ),
-    ];
-    if !d.steps().is_empty() {
-        figures.push(("steps.png".into(), steps_plot(dir, d, input)?));
+    let drawn: Vec<ReportFigure> = figures(d, input, &c);
+    for f in &drawn {
+        f.draw(dir)?;
     }
-    for v in input.validations {
-        figures.push(validation_figure(dir, v, input, &c)?);
-    }
-    let md = markdown(d, input, &figures);
+    let mut listed: Vec<(String, String)> =
+        drawn.into_iter().map(|f| (f.file, f.caption)).collect();
+    let at = listed.len().min(3);
+    listed.insert(at, ("evidence.png".into(), evidence(dir, d, input, &c)?));
+    let md = markdown(d, input, &listed);
     let path = dir.join("report.md");
     write_atomic(&path, |w| w.write_all(md.as_bytes())).map_err(|source| ReportError::Write {
         path: path.clone(),
@@ -122,7 +118,8 @@ fn loop_section(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(s, "| --- | --- | --- | --- | --- | --- | --- |");
     let _ = writeln!(
         s,
-        "| 0 | declared model | - | {} | {} | {:.1} | - |",
+        "| 0 | {} | - | {} | {} | {:.1} | - |",
+        Names::of(d).plain,
         fmt(d.base_fit_rmse),
         fmt(d.base_heldout_rmse),
         d.base_bic
@@ -180,6 +177,7 @@ fn loop_section(s: &mut String, d: &Diagnosis) {
 fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) -> String {
     let mut s = String::new();
     section_header(&mut s, d, input);
+    section_warnings(&mut s, input);
     section_structure(&mut s, d);
     section_backlash(&mut s, d);
     section_result(&mut s, d);
@@ -202,12 +200,16 @@ fn section_header(s: &mut String, d: &Diagnosis, input: &ReportInput) {
     }
     let _ = writeln!(
         s,
-        "Model: pseudo-Wiener with backlash, {} ({}; m1 = 1 is the normalisation). Record: {} samples \
+        "Model: pseudo-Wiener with backlash, {} ({}; m1 = 1 is the normalisation); without any effect it is \
+         called the plain model below. Record: {} samples \
          after decimation by {}; the first {} (about {:.0}%) fit the models, the last {} are held out and only \
          used to judge them (the models are simulated over the whole record, so the held-out part starts from \
          the right state). Every held-out error below is this free-run simulation error. Initial state: {}.\n",
         st.chosen,
-        st.chosen_by,
+        match Names::structure_word(d) {
+            "declared" => "declared by the user",
+            _ => "chosen from the data",
+        },
         d.n,
         input.decimate.max(1),
         d.n_fit,
@@ -215,6 +217,18 @@ fn section_header(s: &mut String, d: &Diagnosis, input: &ReportInput) {
         d.n - d.n_fit,
         d.initial.reason
     );
+}
+
+/// The record's warnings (the JSON's `warnings`): what the record cannot support.
+fn section_warnings(s: &mut String, input: &ReportInput) {
+    if input.warnings.is_empty() {
+        return;
+    }
+    let _ = writeln!(s, "## Warnings\n");
+    for w in input.warnings {
+        let _ = writeln!(s, "- **{w}**");
+    }
+    let _ = writeln!(s);
 }
 
 /// How the structure was chosen, when it was not declared.
@@ -277,7 +291,7 @@ fn section_result(s: &mut String, d: &Diagnosis) {
         let names: Vec<String> = steps.iter().map(|c| format!("`{}`", c.id)).collect();
         let _ = writeln!(
             s,
-            "**Effects found, in order: {}.** Held-out RMSE {} with the declared model, **{}** with all of them \
+            "**Effects found, in order: {}.** Held-out RMSE {} with the plain model, **{}** with all of them \
              (steps in the section *The loop*). The first:\n",
             names.join(", then "),
             fmt(d.base_heldout_rmse),
@@ -291,18 +305,23 @@ fn section_effect_paragraph(s: &mut String, d: &Diagnosis) {
     let effect = d.effect();
     match effect {
         Some(c) => {
+            // The errors the effect was judged by: one-step prediction for a noise model, else free run.
+            let judged = c
+                .one_step
+                .map_or((d.base_heldout_rmse, c.heldout_rmse), |o| {
+                    (o.before, o.after)
+                });
             let _ = writeln!(
                 s,
-                "**Effect: `{}`** — {}.\n\nPointed to by the test *{}*. Held-out RMSE {} with the declared model, \
-                 **{}** with the extension ({:.1}x lower; {} error; Diebold-Mariano z = {:.1}); BIC on the fit part \
-                 {} lower.\n",
+                "**Effect: `{}`** — {}.\n\nPointed to by the test *{}*. Held-out {} RMSE {} with the plain model, \
+                 **{}** with the extension ({:.1}x lower; Diebold-Mariano z = {:.1}); BIC on the fit part {} lower.\n",
                 c.id,
                 c.id.describe(),
                 d.pointing_test().unwrap_or("-"),
-                fmt(d.base_heldout_rmse),
-                fmt(c.heldout_rmse),
-                d.base_heldout_rmse / c.heldout_rmse.max(f64::MIN_POSITIVE),
                 c.error_kind,
+                fmt(judged.0),
+                fmt(judged.1),
+                judged.0 / judged.1.max(f64::MIN_POSITIVE),
                 c.heldout_z,
                 fmt(-c.delta_bic)
             );
@@ -311,10 +330,12 @@ fn section_effect_paragraph(s: &mut String, d: &Diagnosis) {
                     s,
                     "A noise model is judged by one-step-ahead prediction, y(k) - [s(k) + sum phi_i (y(k-i) - s(k-i))] \
                      with s the simulated output: held-out one-step error {} before (the plain model's predictor \
-                     is its simulation) and {} after. The errors above are free-run simulation errors, as \
-                     everywhere in this report.\n",
+                     is its simulation) and {} after. Its free-run simulation error, which every other held-out \
+                     error of this report is, goes from {} to {}.\n",
                     fmt(o.before),
-                    fmt(o.after)
+                    fmt(o.after),
+                    fmt(d.base_heldout_rmse),
+                    fmt(c.heldout_rmse)
                 );
             }
         }
@@ -322,7 +343,7 @@ fn section_effect_paragraph(s: &mut String, d: &Diagnosis) {
             let _ = writeln!(
                 s,
                 "**Effect: null** — no extension of the catalogue is supported by the evidence. Held-out RMSE of the \
-                 declared model: {}.\n",
+                 plain model: {}.\n",
                 fmt(d.base_heldout_rmse)
             );
         }
@@ -347,12 +368,12 @@ fn section_loop_and_rule(s: &mut String, d: &Diagnosis) {
     }
 }
 
-/// The residual tests on the declared model.
+/// The residual tests on the plain model.
 fn section_tests(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(s, "## Residual tests\n");
     let _ = writeln!(
         s,
-        "On the fit part of the declared model's residual (samples 0..{}). A test that rejects points to the \
+        "On the fit part of the plain model's residual (samples 0..{}). A test that rejects points to the \
          effects listed; those effects are fitted as candidates.\n",
         d.n_fit
     );
@@ -385,7 +406,7 @@ fn section_candidates(s: &mut String, d: &Diagnosis) {
         let _ = writeln!(
             s,
             "Each candidate extension is fitted on the fit part (Levenberg-Marquardt on the simulated output, \
-             started from the declared fit). BIC = N ln(RSS/N) + k ln N (+ ln of the number of structures \
+             started from the plain model's fit). BIC = N ln(RSS/N) + k ln N (+ ln of the number of structures \
              searched: {}); dBIC < 0 favours the extension.\n",
             structure_penalties()
         );
@@ -419,14 +440,15 @@ fn section_candidates(s: &mut String, d: &Diagnosis) {
     }
 }
 
-/// The declared and the extended model's parameters.
+/// The plain and the extended model's parameters.
 fn section_models(s: &mut String, d: &Diagnosis) {
     let effect = d.effect();
     let _ = writeln!(s, "## Models\n");
     let b = &d.base.base;
     let _ = writeln!(
         s,
-        "Declared model fitted: a = [{}], b = [{}], m1 = 1, m2 = {}, c1 = {}, c2 = {}; fit RMSE {}, held-out RMSE {}.\n",
+        "Plain model ({} structure) fitted: a = [{}], b = [{}], m1 = 1, m2 = {}, c1 = {}, c2 = {}; fit RMSE {}, held-out RMSE {}.\n",
+        Names::structure_word(d),
         list(&b.a),
         list(&b.b),
         fmt(b.m2),
@@ -462,7 +484,7 @@ fn section_validations(s: &mut String, d: &Diagnosis, input: &ReportInput) {
         let _ = writeln!(s, "## Cross-record validation\n");
         let _ = writeln!(
             s,
-            "The models fitted above, simulated over other records from rest (no refit).\n\n| record | samples | output std | RMSE declared | RMSE {} |\n| --- | --- | --- | --- | --- |",
+            "The models fitted above, simulated over other records from rest (no refit).\n\n| record | samples | output std | RMSE plain model | RMSE {} |\n| --- | --- | --- | --- | --- |",
             effect.map_or("chosen (null)".to_string(), |c| c.id.to_string())
         );
         for v in input.validations {
@@ -490,7 +512,7 @@ fn section_figures(s: &mut String, _d: &Diagnosis, figures: &[(String, String)])
         s,
         "## Why no \"offset\" effect\n\nA constant output offset d is not in the catalogue: with straight borders \
          it is absorbed exactly into the gaps, m1 (x - c1) + d = m1 (x - (c1 - d/m1)) and likewise \
-         m2 (x + c2) + d = m2 (x + (c2 + d/m2)), so the declared model already fits it and no data can show it \
+         m2 (x + c2) + d = m2 (x + (c2 + d/m2)), so the plain model already fits it and no data can show it \
          (an input offset passes through the linear block and is absorbed the same way)."
     );
 }

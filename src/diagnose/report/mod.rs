@@ -7,5 +7,9 @@ pub mod input;
 pub mod markdown;
 pub mod output;
 
+pub use figures::ReportFigure;
 pub use input::{ReportError, ReportInput, Validation};
 pub use markdown::write_report;
+
+#[cfg(test)]
+mod tests;

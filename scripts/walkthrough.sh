@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# The diagnosis walk-through (docs/walkthrough/README.md): runs `backlash diagnose --report` on two measured
+# records and writes each report (report.md, its PNG figures) and the JSON answer beside it, so that every
+# figure and number of the walk-through can be regenerated:
+#
+#     bash scripts/walkthrough.sh            # uses target/release/backlash, building it when missing
+#     BACKLASH=path/to/backlash bash scripts/walkthrough.sh
+#
+# kocaeli: the friction damper with play under the Kocaeli earthquake history (data/brfd), validated on the
+# Imperial Valley history; dc_generator: the DC motor/generator record (data/dc_generator), where the loop
+# adds several effects one after another.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bin=${BACKLASH:-target/release/backlash}
+if [ ! -x "$bin" ]; then
+    BACKLASH_FMU=never cargo build --release --bin backlash
+fi
+out=docs/walkthrough
+
+# One report: name, then the arguments of `backlash diagnose` (the report folder and --json are added).
+report() {
+    local name=$1
+    shift
+    rm -rf "${out:?}/$name"
+    "$bin" diagnose "$@" --report "$out/$name" --json >"$out/$name.json"
+    echo "$out/$name/report.md"
+}
+
+report kocaeli data/brfd/KocaeliDBE_36lb.csv --time-col t --decimate 16 \
+    --validate-on data/brfd/ImperialValleyDBE_36lb.csv
+report dc_generator data/dc_generator/dc_generator.csv --decimate 5
