@@ -9,6 +9,7 @@
 //!
 //! Nothing here names an effect: an extension's behaviour comes from its effect (`crate::diagnose::effects`).
 
+pub(crate) mod linear_oe;
 pub mod lm;
 pub mod model;
 pub mod problem;

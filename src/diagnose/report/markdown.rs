@@ -229,7 +229,7 @@ fn section_structure(s: &mut String, d: &Diagnosis) {
         );
         let _ = writeln!(
             s,
-            "| na | nb | delay | equation-error fit, validation RMSE | backlash model, validation RMSE | chosen |"
+            "| na | nb | delay | linear output-error model, validation RMSE | backlash model, validation RMSE | chosen |"
         );
         let _ = writeln!(s, "| --- | --- | --- | --- | --- | --- |");
         let opt = |v: Option<f64>| v.map_or("-".to_string(), fmt);
@@ -240,7 +240,7 @@ fn section_structure(s: &mut String, d: &Diagnosis) {
                 c.structure.na,
                 c.structure.nb,
                 c.structure.delay,
-                opt(c.arx_rmse),
+                opt(c.linear_rmse),
                 opt(c.model_rmse),
                 if c.chosen { "**yes**" } else { "" }
             );
