@@ -16,8 +16,11 @@ use std::time::{Duration, Instant};
 use serde_json::{Value, json};
 
 use crate::diagnose::engine::{DiagnoseConfig, DiagnoseError, Diagnosis};
+pub use crate::diagnose::fit::rate::Rate;
 use crate::diagnose::output::DiagnosisOut;
-use crate::diagnose::structure::{Replacement, Structure, StructureChoice, select_for_record};
+use crate::diagnose::structure::{
+    Replacement, Structure, StructureChoice, fit_len, select_for_record,
+};
 use crate::identify::frequency::analysis::{Analysis, AnalysisOptions, analyse};
 use crate::identify::frequency::{FrequencyError, SineRecord};
 use crate::identify::mrgia::{Estimate, MrgiaConfig};
@@ -598,10 +601,63 @@ pub fn diagnosis_json(d: &Diagnosis, u: &[f64], ts: Option<f64>, decimate: usize
         out["Ts_note"] = json!(NO_TS_NOTE);
     }
     out["decimate"] = json!(decimate);
+    out["closest_alternative"] = json!(d.closest_alternative());
     let s = d.structure.chosen;
     let params = s.na + s.nb + 1 + 3;
     out["warnings"] = json!(InputCheck::of(u).warnings(d.n_fit as u64, params));
     out
+}
+
+/// The rate `diagnose` and `identify oe` work at: the user's decimation when given (`user`, the record already
+/// decimated by it), else the one the data ask for on a record whose share `fit_fraction` is fitted (see
+/// [`crate::diagnose::fit::rate`]). The program and the Python functions call this alike.
+pub fn choose_rate(
+    u: &[f64],
+    y: &[f64],
+    user: Option<usize>,
+    fit_fraction: f64,
+) -> Result<Rate, ApiError> {
+    check_record(&[("u", u), ("y", y)], 0)?;
+    match user {
+        Some(d) => {
+            RecordOptions {
+                decimate: d,
+                ..RecordOptions::default()
+            }
+            .check()?;
+            Ok(Rate::user(d))
+        }
+        None if u.len() < 2 => Ok(Rate::user(1)),
+        None => Ok(crate::diagnose::fit::rate::choose(
+            u,
+            y,
+            fit_len(u.len(), fit_fraction),
+        )),
+    }
+}
+
+/// Adds the rate to a command's JSON: `decimate` (the factor the record was worked at) and `rate` (how it
+/// was chosen and why).
+pub fn with_rate(out: &mut Value, rate: &Rate) {
+    out["decimate"] = json!(rate.decimate);
+    out["rate"] = json!(rate);
+}
+
+/// The record's input and output at the rate chosen by [`choose_rate`] (`user`: the factor asked for), with
+/// the rate.
+pub fn at_rate(
+    u: &[f64],
+    y: &[f64],
+    user: Option<usize>,
+    fit_fraction: f64,
+) -> Result<(Rate, [Vec<f64>; 2]), ApiError> {
+    let [u, y] = decimated(u, y, user.unwrap_or(1))?;
+    let rate = choose_rate(&u, &y, user, fit_fraction)?;
+    let out = match rate.chosen_by {
+        "data" => decimated(&u, &y, rate.decimate)?,
+        _ => [u, y],
+    };
+    Ok((rate, out))
 }
 
 /// The record's input and output after decimation by `decimate` (block means), checked.

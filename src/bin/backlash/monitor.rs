@@ -105,7 +105,7 @@ pub fn run(args: &MonitorArgs) -> Result<()> {
     }
     let mut out = serde_json::to_value(session.summary())?;
     out["file"] = json!(args.file.display().to_string());
-    out["decimate"] = json!(args.record.decimate);
+    out["decimate"] = json!(args.record.decimate());
     if args.json {
         println!("{out}");
     } else {

@@ -13,5 +13,6 @@ pub(crate) mod linear_oe;
 pub mod lm;
 pub mod model;
 pub mod problem;
+pub mod rate;
 pub mod starts;
 pub mod structure;

@@ -497,7 +497,16 @@ pub(crate) fn fit_linear(p: &Problem, s: Structure) -> Option<(BaseModel, f64)> 
     ];
     let mut typ = coefficient_scales(na, &b, gain);
     typ.push(p.y_scale);
-    let (th, cost) = p.fit_packed(&unpack, &starts, &typ, Objective::Simulation)?;
+    // When the fit fails on the whole fit part (a point explored on the window that is not valid over the
+    // whole of it), the best valid start is the linear model: a record is never refused for want of one.
+    let (th, cost) = p
+        .fit_packed(&unpack, &starts, &typ, Objective::Simulation)
+        .or_else(|| {
+            starts
+                .iter()
+                .filter_map(|th| Some((th.clone(), p.cost(&unpack(th), Objective::Simulation)?)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+        })?;
     Some((unpack(&th).base, cost))
 }
 
@@ -593,7 +602,13 @@ pub(crate) fn fit_plain(
         .map(EffectModel::plain)
         .collect();
     let template = models[0].clone();
-    let (mut best, mut cost) = p.fit(&template, &models, Objective::Simulation)?;
+    let (lin, lin_cost) = linear;
+    // A fit that fails on the whole fit part (see `fit_linear`) leaves the linear model.
+    let Some((mut best, mut cost)) = p.fit(&template, &models, Objective::Simulation) else {
+        return lin_cost
+            .is_finite()
+            .then(|| (EffectModel::plain(lin.clone()), *lin_cost));
+    };
     // Perturbed restarts around the best. On a long record a restart is explored on the window and refined
     // on the whole fit part only if the optimum it reaches there is lower than the best's own optimum there
     // (the best, refined on the whole fit part, sits off the window's optimum: its raw window cost would let
@@ -650,7 +665,6 @@ pub(crate) fn fit_plain(
             cost = c;
         }
     }
-    let (lin, lin_cost) = linear;
     if cost > *lin_cost {
         return Some((EffectModel::plain(lin.clone()), *lin_cost));
     }

@@ -215,6 +215,19 @@ fn section_header(s: &mut String, d: &Diagnosis, input: &ReportInput) {
         d.n - d.n_fit,
         d.initial.reason
     );
+    if let Some(r) = &input.rate {
+        let _ = writeln!(s, "Sampling rate: {r}.\n");
+    }
+    if let Some(c) = d.closest_alternative() {
+        let _ = writeln!(
+            s,
+            "Closest alternative: `{}` was rejected ({}) although its held-out error, {}, is below the chosen model's, {}.\n",
+            c.id.as_str(),
+            c.reason,
+            fmt(c.heldout_rmse),
+            fmt(c.chosen_heldout_rmse)
+        );
+    }
 }
 
 /// How the structure was chosen, when it was not declared.
