@@ -7,7 +7,7 @@
 //! samples that carry little more than a few hundred would.
 //!
 //! **The criterion.** A probe model, the linear output-error model with two poles, one zero and delay 1
-//! ([`crate::diagnose::fit::linear_oe`]), is fitted on the first [`PROBE_SAMPLES`] samples (at most) of the
+//! (`linear_oe`), is fitted on the first [`PROBE_SAMPLES`] samples (at most) of the
 //! fit part. Its slowest pole `p` (radius r, angle theta) gives the dynamics' time constant
 //! `tau = -1 / ln r` samples and, when it oscillates, `2 pi / theta` samples per period. The record is
 //! oversampled when `tau` spans more than [`SAMPLES_PER_TAU`] samples at a coarser rate: the factor is

@@ -1,5 +1,5 @@
 //! Choosing the orders and the delay from the data, on the fit part only: the one selection that
-//! `diagnose`, `identify oe` and the Python functions call ([`choose`]).
+//! `diagnose`, `identify oe` and the Python functions call (`choose`).
 //!
 //! The fit part's first [`SELECT_SAMPLES`] samples (at most) are split in two: the first two thirds
 //! *estimate*, the last third *validates*; nothing of the held-out part is seen. Every structure with
@@ -7,7 +7,7 @@
 //! the record) is scored in two stages, both by **free-run simulation error** (what the models are judged
 //! by), never by equation error:
 //!
-//! 1. its linear output-error model ([`crate::diagnose::fit::linear_oe`]: started from the equation-error
+//! 1. its linear output-error model (`linear_oe`: started from the equation-error
 //!    least-squares fit, stabilised, and from its FIR part, refined by a few Levenberg-Marquardt
 //!    iterations) on the estimation part, simulated free-run over both parts: the validation RMSE ranks all
 //!    structures cheaply. (Least-squares equation-error fits of a record sampled far faster than its
