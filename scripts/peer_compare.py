@@ -70,7 +70,8 @@ class Record:
     time_col: str = "time"
     u_col: str = "u"
     y_col: str = "y"
-    decimate: int = 1
+    # None: diagnose chooses the rate itself (no --decimate); the peers are then fitted at the rate it chose.
+    decimate: int | None = 1
     # (na, nb, delay) passed to diagnose only when it refuses to choose a structure itself.
     fallback: tuple[int, int, int] = (1, 0, 1)
     note: str = ""
@@ -88,6 +89,14 @@ RECORDS = [
         decimate=16,
         fallback=(0, 0, 1),
         note="friction damper with play, 0.5 Hz sine; 1024 Hz / 16 (the choice of docs/RESULTS.md)",
+    ),
+    Record(
+        "brfd-sine-rate",
+        "data/brfd/char_0.5Hz_36lb_1in.csv",
+        time_col="t",
+        decimate=None,
+        fallback=(0, 0, 1),
+        note="the same sine record at its full 1024 Hz: diagnose chooses the rate",
     ),
     Record(
         "brfd-kocaeli",
@@ -119,6 +128,13 @@ RECORDS = [
         note="DC motor driving a generator, PRBS input; file already block means of 50, here 5 more "
         "(2 samples per PRBS bit)",
     ),
+    Record(
+        "dc-generator-rate",
+        "data/dc_generator/dc_generator.csv",
+        decimate=None,
+        fallback=(1, 0, 1),
+        note="the same record as the file gives it (10 samples per PRBS bit): diagnose chooses the rate",
+    ),
 ]
 
 
@@ -135,7 +151,8 @@ def read_record(rec: Record, root: pathlib.Path = ROOT) -> tuple[np.ndarray, np.
             raise ValueError(f"{path}: no column {', '.join(missing)}")
         rows = [(float(r[rec.u_col]), float(r[rec.y_col])) for r in reader]
     data = np.asarray(rows, dtype=float).reshape(-1, 2)
-    return block_means(data[:, 0], rec.decimate), block_means(data[:, 1], rec.decimate)
+    factor = rec.decimate or 1
+    return block_means(data[:, 0], factor), block_means(data[:, 1], factor)
 
 
 def block_means(x: np.ndarray, factor: int) -> np.ndarray:
@@ -338,6 +355,9 @@ class DiagnoseResult:
     after: float = math.nan
     linear: float = math.nan
     effects: str = ""
+    # The decimation diagnose worked at and who chose it ("user" or "data").
+    decimate: int = 1
+    rate_by: str = ""
     seconds: float = math.nan
     peak_mib: float = math.nan
     reason: str = ""
@@ -407,7 +427,9 @@ def refused_for_structure(stderr: str) -> bool:
 
 
 def diagnose_command(binary: str, rec: Record, root: pathlib.Path, structure=None) -> list[str]:
-    cmd = [binary, "diagnose", str(root / rec.file), "--json", "--decimate", str(rec.decimate)]
+    cmd = [binary, "diagnose", str(root / rec.file), "--json"]
+    if rec.decimate is not None:
+        cmd += ["--decimate", str(rec.decimate)]
     cmd += ["--time-col", rec.time_col, "--u-col", rec.u_col, "--y-col", rec.y_col]
     if structure is not None:
         na, nb, d = structure
@@ -446,6 +468,8 @@ def run_diagnose(binary: str, rec: Record, timeout: float, root: pathlib.Path = 
 
 def fill_from_json(res: DiagnoseResult, doc: dict) -> None:
     res.structure = f"{doc.get('na')},{doc.get('nb')},{doc.get('delay')}"
+    res.decimate = int(doc.get("decimate") or 1)
+    res.rate_by = (doc.get("rate") or {}).get("chosen_by", "user")
     res.before = number(doc.get("before", {}).get("rmse"))
     res.after = number(doc.get("after", {}).get("rmse"))
     res.linear = number((doc.get("linear") or {}).get("rmse"))
@@ -474,6 +498,7 @@ COLUMNS = [
     "ARX RMSE",
     "NARX ylag,xlag",
     "NARX RMSE",
+    "rate (decimate)",
     "diagnose na,nb,d",
     "before",
     "after",
@@ -492,6 +517,11 @@ def compare(rec: Record, binary: str, timeout: float, root: pathlib.Path = ROOT)
     if rec.if_absent and not (root / rec.file).is_file():
         row["notes"] = rec.if_absent
         return row
+    d = run_diagnose(binary, rec, timeout, root)
+    if rec.decimate is None:
+        # The peers work at the rate diagnose chose, so that every error is on the same held-out samples.
+        rec = dataclasses.replace(rec, decimate=d.decimate)
+    row["rate (decimate)"] = f"{d.decimate} ({d.rate_by})" if d.rate_by else ""
     try:
         u, y = read_record(rec, root)
     except (OSError, ValueError) as e:
@@ -515,7 +545,6 @@ def compare(rec: Record, binary: str, timeout: float, root: pathlib.Path = ROOT)
         row[f"{label} RMSE"] = fmt(p.heldout_rmse)
         if p.reason:
             notes.append(f"{label}: {p.reason}")
-    d = run_diagnose(binary, rec, timeout, root)
     row["diagnose na,nb,d"] = d.structure + (" (fallback)" if d.chosen_by == "fallback" else "")
     row["before"], row["after"], row["linear"] = fmt(d.before), fmt(d.after), fmt(d.linear)
     row["effects"] = d.effects

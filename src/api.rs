@@ -16,8 +16,11 @@ use std::time::{Duration, Instant};
 use serde_json::{Value, json};
 
 use crate::diagnose::engine::{DiagnoseConfig, DiagnoseError, Diagnosis};
+pub use crate::diagnose::fit::rate::Rate;
 use crate::diagnose::output::DiagnosisOut;
-use crate::diagnose::structure::{Structure, StructureChoice, select_for_record};
+use crate::diagnose::structure::{
+    Replacement, Structure, StructureChoice, fit_len, select_for_record,
+};
 use crate::identify::frequency::analysis::{Analysis, AnalysisOptions, analyse};
 use crate::identify::frequency::{FrequencyError, SineRecord};
 use crate::identify::mrgia::{Estimate, MrgiaConfig};
@@ -300,26 +303,19 @@ pub fn identify_oe_with_progress(
             opts.max_delay
         )));
     }
-    let structure = match opts.structure {
+    let mut structure = match opts.structure {
         Some(s) => StructureChoice::declared(s),
         None => {
             progress("choosing the structure (orders and delay)");
-            select_for_record(u, y, opts.max_delay)
+            select_for_record(u, y, opts.max_delay, DiagnoseConfig::auto().fit_fraction)
         }
     };
-    let s = structure.chosen;
-    let mut cfg = OeConfig::new(s.na, s.nb, s.delay);
-    cfg.extra_starts = !opts.single_start;
-    if let Some(m) = opts.max_iter {
-        cfg.max_iter = m;
-    }
-    cfg.validate()?;
     let started = Instant::now();
     progress(&format!(
         "fitting the output-error model ({})",
         structure.chosen
     ));
-    let fit = oe::fit(&cfg, u, y)?;
+    let (cfg, fit) = fit_oe(&mut structure, opts, u, y)?;
     let seconds = started.elapsed().as_secs_f64();
     let bound = match opts.crb_noise_std {
         Some(s) => Some(oe::crb(&plant_of(&fit.estimate, cfg.delay)?, u, s)?),
@@ -333,6 +329,61 @@ pub fn identify_oe_with_progress(
         seconds,
         check: InputCheck::of(u),
     })
+}
+
+/// The output-error configuration of a structure with the settings of `opts`, checked.
+fn oe_config(s: Structure, opts: &OeOptions) -> Result<OeConfig, ApiError> {
+    let mut cfg = OeConfig::new(s.na, s.nb, s.delay);
+    cfg.extra_starts = !opts.single_start;
+    if let Some(m) = opts.max_iter {
+        cfg.max_iter = m;
+    }
+    cfg.validate()?;
+    Ok(cfg)
+}
+
+/// The fit of the chosen structure. A selected structure whose fit the record does not excite (the
+/// selection checks this on the fit part; the whole record can still differ) is replaced by the best
+/// identifiable smaller one among the structures fitted fully, and the choice says so; a declared structure
+/// is the user's and is refused with the reason.
+fn fit_oe(
+    structure: &mut StructureChoice,
+    opts: &OeOptions,
+    u: &[f64],
+    y: &[f64],
+) -> Result<(OeConfig, OeFit), ApiError> {
+    let first = structure.chosen;
+    let cfg = oe_config(first, opts)?;
+    let err = match oe::fit(&cfg, u, y) {
+        Ok(fit) => return Ok((cfg, fit)),
+        Err(e @ OeError::NotExcited { .. }) if structure.chosen_by == "selected" => e,
+        Err(e) => return Err(e.into()),
+    };
+    let mut smaller: Vec<(Structure, f64)> = structure
+        .candidates
+        .iter()
+        .filter(|c| c.structure.n_params() < first.n_params() && c.excited != Some(false))
+        .filter_map(|c| c.model_rmse.map(|r| (c.structure, r)))
+        .collect();
+    smaller.sort_by(|a, b| a.1.total_cmp(&b.1));
+    for (s, _) in smaller {
+        let cfg = oe_config(s, opts)?;
+        if let Ok(fit) = oe::fit(&cfg, u, y) {
+            structure.replaced = Some(Replacement {
+                structure: first,
+                reason: format!(
+                    "{first} was chosen on the fit part, but on the whole record {err}; the best identifiable \
+                     smaller structure, {s}, replaces it"
+                ),
+            });
+            for c in &mut structure.candidates {
+                c.chosen = c.structure == s;
+            }
+            structure.chosen = s;
+            return Ok((cfg, fit));
+        }
+    }
+    Err(err.into())
 }
 
 impl OeRun {
@@ -579,10 +630,63 @@ pub fn diagnosis_json(d: &Diagnosis, u: &[f64], ts: Option<f64>, decimate: usize
         out["Ts_note"] = json!(NO_TS_NOTE);
     }
     out["decimate"] = json!(decimate);
+    out["closest_alternative"] = json!(d.closest_alternative());
     let s = d.structure.chosen;
     let params = s.na + s.nb + 1 + 3;
     out["warnings"] = json!(InputCheck::of(u).warnings(d.n_fit as u64, params));
     out
+}
+
+/// The rate `diagnose` and `identify oe` work at: the user's decimation when given (`user`, the record already
+/// decimated by it), else the one the data ask for on a record whose share `fit_fraction` is fitted (see
+/// [`crate::diagnose::fit::rate`]). The program and the Python functions call this alike.
+pub fn choose_rate(
+    u: &[f64],
+    y: &[f64],
+    user: Option<usize>,
+    fit_fraction: f64,
+) -> Result<Rate, ApiError> {
+    check_record(&[("u", u), ("y", y)], 0)?;
+    match user {
+        Some(d) => {
+            RecordOptions {
+                decimate: d,
+                ..RecordOptions::default()
+            }
+            .check()?;
+            Ok(Rate::user(d))
+        }
+        None if u.len() < 2 => Ok(Rate::user(1)),
+        None => Ok(crate::diagnose::fit::rate::choose(
+            u,
+            y,
+            fit_len(u.len(), fit_fraction),
+        )),
+    }
+}
+
+/// Adds the rate to a command's JSON: `decimate` (the factor the record was worked at) and `rate` (how it
+/// was chosen and why).
+pub fn with_rate(out: &mut Value, rate: &Rate) {
+    out["decimate"] = json!(rate.decimate);
+    out["rate"] = json!(rate);
+}
+
+/// The record's input and output at the rate chosen by [`choose_rate`] (`user`: the factor asked for), with
+/// the rate.
+pub fn at_rate(
+    u: &[f64],
+    y: &[f64],
+    user: Option<usize>,
+    fit_fraction: f64,
+) -> Result<(Rate, [Vec<f64>; 2]), ApiError> {
+    let [u, y] = decimated(u, y, user.unwrap_or(1))?;
+    let rate = choose_rate(&u, &y, user, fit_fraction)?;
+    let out = match rate.chosen_by {
+        "data" => decimated(&u, &y, rate.decimate)?,
+        _ => [u, y],
+    };
+    Ok((rate, out))
 }
 
 /// The record's input and output after decimation by `decimate` (block means), checked.

@@ -178,10 +178,11 @@ def identify_mrgia(u, y, na, nb, delay, recommended=False, *, refine=False, p0=N
 
 
 def identify_oe(u, y, na=None, nb=None, delay=None, *, max_delay=10, single_start=False, max_iter=None,
-                crb_noise_std=None, target_rel=None, progress=None, decimate=1):
+                crb_noise_std=None, target_rel=None, progress=None, decimate=None):
     """The output-error fit with standard errors: the dict of `backlash identify oe --json`. Without na, nb and
     delay the structure is chosen from the data (as the command does). progress: None (default), True (the
-    stage on standard error) or a callable progress(stage). decimate: as the command's --decimate."""
+    stage on standard error) or a callable progress(stage). decimate: as the command's --decimate (None: the
+    rate is chosen from the data, as the command does without it; `rate` says how)."""
     text = _with_stages(progress, lambda report: _backlash.identify_oe(
         _array(u, "u"), _array(y, "y"), na, nb, delay, max_delay, single_start, max_iter, crb_noise_std,
         target_rel, report, decimate))
@@ -208,13 +209,14 @@ def crb(u, *, noise_std=None, snr=None, target_rel=None, **truth):
 
 
 def diagnose(u, y, na=None, nb=None, delay=None, *, ts=None, max_delay=10, fit_fraction=0.7, seed=0,
-             max_effects=3, time_budget=300.0, decimate=1, progress=None):
+             max_effects=3, time_budget=300.0, decimate=None, progress=None):
     """The diagnosis of `backlash diagnose --json` as a dict: the held-out error before and after, and every
     effect the model lacks (`effect` the first, or None).
 
     Options as the command's: ts (the sample period in s; the command reads it from the time column), max_delay,
     fit_fraction, seed, max_effects, time_budget (s), decimate (average blocks of that many samples into one
-    first; orders and delays then count decimated samples). Without na, nb and delay the structure is chosen
+    first; orders and delays then count decimated samples; None: the rate is chosen from the data, as the command
+    does without --decimate, and `rate` says how). Without na, nb and delay the structure is chosen
     from the data. Without ts the rates and frequencies are per sample only: the keys per second or in Hz
     (c1_rate_per_s, frequency_hz, ...) are left out, and `Ts_note` says so. progress: None (default), True (the
     stage on standard error) or a callable progress(stage). `warnings` lists what the record cannot support.

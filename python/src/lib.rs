@@ -240,7 +240,7 @@ fn identify_mrgia(
 /// -> the JSON text of `identify oe`.
 #[pyfunction]
 #[pyo3(signature = (u, y, na=None, nb=None, delay=None, max_delay=10, single_start=false, max_iter=None,
-    crb_noise_std=None, target_rel=None, progress=None, decimate=1))]
+    crb_noise_std=None, target_rel=None, progress=None, decimate=None))]
 #[expect(
     clippy::too_many_arguments,
     reason = "the Python signature: keyword arguments with defaults"
@@ -258,7 +258,7 @@ fn identify_oe(
     crb_noise_std: Option<f64>,
     target_rel: Option<f64>,
     progress: Option<Py<PyAny>>,
-    decimate: usize,
+    decimate: Option<usize>,
 ) -> PyResult<String> {
     let opts = OeOptions {
         structure: structure(na, nb, delay)?,
@@ -270,10 +270,12 @@ fn identify_oe(
     let (u, y) = (u.as_slice()?, y.as_slice()?);
     let stages = Stages::new(progress);
     let r = compute(py, || {
-        let [u, y] = api::decimated(u, y, decimate)?;
-        api::identify_oe_with_progress(&u, &y, &opts, &|s| stages.report(s))?
-            .json(target_rel)
-            .map(|v| json_text(&v))
+        let fit_fraction = DiagnoseConfig::auto().fit_fraction;
+        let (rate, [u, y]) = api::at_rate(u, y, decimate, fit_fraction)?;
+        let mut out = api::identify_oe_with_progress(&u, &y, &opts, &|s| stages.report(s))?
+            .json(target_rel)?;
+        api::with_rate(&mut out, &rate);
+        Ok(json_text(&out))
     });
     stages.finish(r)
 }
@@ -349,7 +351,7 @@ fn crb(
 /// progress) -> the JSON text of `backlash diagnose` (without what belongs to a file).
 #[pyfunction]
 #[pyo3(signature = (u, y, na=None, nb=None, delay=None, ts=None, max_delay=10, fit_fraction=0.7, seed=0,
-    max_effects=3, time_budget=300.0, decimate=1, progress=None))]
+    max_effects=3, time_budget=300.0, decimate=None, progress=None))]
 #[expect(
     clippy::too_many_arguments,
     reason = "the Python signature: keyword arguments with defaults"
@@ -367,7 +369,7 @@ fn diagnose(
     seed: u64,
     max_effects: usize,
     time_budget: f64,
-    decimate: usize,
+    decimate: Option<usize>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<String> {
     if let Some(t) = ts
@@ -390,10 +392,12 @@ fn diagnose(
             time_budget: api::time_budget(time_budget)?,
             ..DiagnoseConfig::auto()
         };
-        let [u, y] = api::decimated(u, y, decimate)?;
+        let (rate, [u, y]) = api::at_rate(u, y, decimate, fit_fraction)?;
         let d = api::diagnose_with_progress(&u, &y, &cfg, &|s| stages.report(s))?;
-        let ts = ts.map(|t| t * decimate as f64);
-        Ok(json_text(&api::diagnosis_json(&d, &u, ts, decimate)))
+        let ts = ts.map(|t| t * rate.decimate as f64);
+        let mut out = api::diagnosis_json(&d, &u, ts, rate.decimate);
+        api::with_rate(&mut out, &rate);
+        Ok(json_text(&out))
     });
     stages.finish(r)
 }

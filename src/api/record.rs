@@ -145,6 +145,27 @@ impl Record {
         self.labels.get(i).map_or("", String::as_str)
     }
 
+    /// The record decimated further by `factor` (block means of every column; a partial last block
+    /// dropped): what a rate chosen from the data does to a record read at the user's rate.
+    pub fn decimated(self, factor: usize) -> Record {
+        if factor <= 1 {
+            return self;
+        }
+        let cols: Vec<&[f64]> = [&self.t, &self.u, &self.y]
+            .into_iter()
+            .filter(|c| !c.is_empty())
+            .map(Vec::as_slice)
+            .collect();
+        let mut d = block_means(&cols, factor).into_iter();
+        Record {
+            t: d.next().unwrap_or_default(),
+            u: d.next().unwrap_or_default(),
+            y: d.next().unwrap_or_default(),
+            decimate: self.decimate * factor,
+            labels: self.labels,
+        }
+    }
+
     /// The median sample period of the time column; `None` below two samples.
     pub fn sample_period(&self) -> Option<f64> {
         sample_period(&self.t)

@@ -182,6 +182,7 @@ pub(crate) mod tests {
             u: &s.u,
             y: &s.y,
             decimate: 1,
+            rate: None,
             command: None,
             validations: &[],
             warnings: &[],

@@ -753,6 +753,17 @@ fn uncertainty(
     }
 }
 
+/// Whether the record (`u`, `y`) excites every parameter of the model `est` (m1 != 1 is normalised first):
+/// the test by which [`fit`] refuses an estimate ([`OeError::NotExcited`]), at a given point. The structure
+/// selection asks it of each structure it fits fully, so that it never chooses a structure the fit then
+/// refuses.
+pub fn check_excited(est: &Estimate, delay: usize, u: &[f64], y: &[f64]) -> Result<(), OeError> {
+    let th = Theta::new(&normalised(est), delay)?;
+    let ne = normal_equations(&th, u, y);
+    let names = param_names(th.na, th.nb);
+    inverse_information(&info_matrix(&ne, th.p()), &names).map(|_| ())
+}
+
 /// Cramer-Rao bound of the output-error model for input `u`, true plant `truth` (normalised to m1 = 1 with
 /// [`normalise`]; slopes > 0, any finite gaps) and white Gaussian measurement noise of standard deviation
 /// `noise_std`:

@@ -25,9 +25,10 @@ pub struct RecordArgs {
     pub y_col: String,
     /// Average blocks of N samples into one before anything else (anti-alias mean, then one sample per
     /// block); for records sampled far faster than their dynamics. Orders and delays count the decimated
-    /// samples.
-    #[arg(long, default_value_t = 1)]
-    pub decimate: usize,
+    /// samples. Without it, `diagnose` and `identify oe` choose the rate from the data (a record sampled far
+    /// faster than its dynamics is decimated, and the answer says why); the other commands use every sample.
+    #[arg(long)]
+    pub decimate: Option<usize>,
 }
 
 impl RecordArgs {
@@ -36,8 +37,13 @@ impl RecordArgs {
             time_col: self.time_col.clone(),
             u_col: self.u_col.clone(),
             y_col: self.y_col.clone(),
-            decimate: self.decimate,
+            decimate: self.decimate(),
         }
+    }
+
+    /// `--decimate`, 1 when not given.
+    pub fn decimate(&self) -> usize {
+        self.decimate.unwrap_or(1)
     }
 }
 

@@ -3,7 +3,10 @@
 use super::common::{RecordArgs, print_json, print_warnings, spinner};
 use super::structure::StructureArgs;
 use anyhow::{Context, Result};
-use backlash::api::{Record, diagnose_with_progress, diagnosis_json, time_budget};
+use backlash::api::{
+    Rate, Record, RecordOptions, choose_rate, diagnose_with_progress, diagnosis_json, time_budget,
+    with_rate,
+};
 use backlash::diagnose::engine::{DiagnoseConfig, Diagnosis};
 use backlash::diagnose::report::{ReportInput, Validation, write_report};
 use backlash::report::number;
@@ -76,6 +79,12 @@ impl DiagnoseArgs {
 pub fn run(args: &DiagnoseArgs, argv: &[String]) -> Result<()> {
     let rec = args.record.options().read(&args.file, true)?;
     let cfg = args.config()?;
+    let rate = choose_rate(&rec.u, &rec.y, args.record.decimate, cfg.fit_fraction)
+        .with_context(|| format!("{}", args.file.display()))?;
+    let rec = match rate.chosen_by {
+        "data" => rec.decimated(rate.decimate),
+        _ => rec,
+    };
     // The stage on standard error (drawn only on a terminal; not with --json).
     let progress = spinner(args.json, "reading");
     let d = diagnose_with_progress(&rec.u, &rec.y, &cfg, &|stage| {
@@ -84,8 +93,9 @@ pub fn run(args: &DiagnoseArgs, argv: &[String]) -> Result<()> {
     .with_context(|| format!("{}: cannot diagnose", args.file.display()));
     progress.finish_and_clear();
     let d = d?;
-    let validations = validate(args, &d)?;
+    let validations = validate(args, &d, rate.decimate)?;
     let mut out = diagnosis_json(&d, &rec.u, rec.sample_period(), rec.decimate);
+    with_rate(&mut out, &rate);
     let warnings: Vec<String> = out["warnings"]
         .as_array()
         .into_iter()
@@ -93,7 +103,15 @@ pub fn run(args: &DiagnoseArgs, argv: &[String]) -> Result<()> {
         .filter_map(|w| w.as_str().map(str::to_owned))
         .collect();
     let report = match &args.report {
-        Some(dir) => Some(report(args, argv, dir, &rec, &d, &validations, &warnings)?),
+        Some(dir) => Some(report(
+            args,
+            argv,
+            dir,
+            &rec,
+            &d,
+            (&validations, &rate),
+            &warnings,
+        )?),
         None => None,
     };
     out["validate_on"] = validation_json(args, &validations)?;
@@ -106,11 +124,15 @@ pub fn run(args: &DiagnoseArgs, argv: &[String]) -> Result<()> {
     Ok(())
 }
 
-/// `--validate-on`: the fitted models on each other record.
-fn validate(args: &DiagnoseArgs, d: &Diagnosis) -> Result<Vec<Validation>> {
+/// `--validate-on`: the fitted models on each other record, at the rate of the diagnosis (`decimate`).
+fn validate(args: &DiagnoseArgs, d: &Diagnosis, decimate: usize) -> Result<Vec<Validation>> {
     let mut validations = Vec::new();
+    let options = RecordOptions {
+        decimate,
+        ..args.record.options()
+    };
     for path in &args.validate_on {
-        let rec = args.record.options().read(path, true)?;
+        let rec = options.read(path, true)?;
         let result = d.cross_validate(&rec.u, &rec.y).with_context(|| {
             format!(
                 "{}: the fitted models cannot be simulated on it",
@@ -150,7 +172,7 @@ fn report(
     dir: &Path,
     rec: &Record,
     d: &Diagnosis,
-    validations: &[Validation],
+    (validations, rate): (&[Validation], &Rate),
     warnings: &[String],
 ) -> Result<PathBuf> {
     // The command as a user would type it (the program's own path replaced by its name).
@@ -165,6 +187,7 @@ fn report(
         u: &rec.u,
         y: &rec.y,
         decimate: rec.decimate,
+        rate: Some(rate.reason.clone()),
         columns: [rec.label(0), rec.label(1), rec.label(2)],
         command: Some(command),
         validations,
@@ -185,10 +208,9 @@ fn print_text(
         "Diagnosis of {} ({} samples{}; fit on the first {}, {} held out)",
         args.file.display(),
         d.n,
-        if args.record.decimate > 1 {
-            format!(" after decimation by {}", args.record.decimate)
-        } else {
-            String::new()
+        match out["rate"]["decimate"].as_u64() {
+            Some(f) if f > 1 => format!(" after decimation by {f}"),
+            _ => String::new(),
         },
         d.n_fit,
         d.n - d.n_fit
@@ -196,6 +218,11 @@ fn print_text(
     println!(
         "  structure ({}): {}",
         d.structure.chosen_by, d.structure.reason
+    );
+    println!(
+        "  rate ({}): {}",
+        out["rate"]["chosen_by"].as_str().unwrap_or(""),
+        out["rate"]["reason"].as_str().unwrap_or("")
     );
     println!("  initial state: {}", d.initial.reason);
     print_steps(d);

@@ -251,7 +251,7 @@ pub fn run_mrgia(args: &MrgiaArgs) -> Result<()> {
         anyhow::bail!(
             "{}: fewer rows than one block of --decimate {}: nothing to estimate",
             args.file.display(),
-            args.record.decimate
+            args.record.decimate()
         );
     }
     if let Some((w, path)) = pass.trace.take() {

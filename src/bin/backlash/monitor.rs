@@ -108,7 +108,7 @@ pub fn run(args: &MonitorArgs) -> Result<()> {
     }
     let mut out = monitor_json(&session, &check)?;
     out["file"] = json!(args.file.display().to_string());
-    out["decimate"] = json!(args.record.decimate);
+    out["decimate"] = json!(args.record.decimate());
     if args.json {
         println!("{out}");
     } else {

@@ -4,7 +4,11 @@
 use super::common::{ModelArgs, RecordArgs, print_json, print_warnings, spinner};
 use super::structure::StructureArgs;
 use anyhow::{Context, Result, bail};
-use backlash::api::{CrbNoise, CrbRun, OeOptions, OeRun, Record, crb, identify_oe_with_progress};
+use backlash::api::{
+    CrbNoise, CrbRun, OeOptions, OeRun, Record, choose_rate, crb, identify_oe_with_progress,
+    with_rate,
+};
+use backlash::diagnose::engine::DiagnoseConfig;
 use backlash::identify::mrgia::paper_input;
 use backlash::identify::oe::{Uncertainty, simulate, theta_of};
 use backlash::io::write_atomic;
@@ -64,6 +68,17 @@ fn print_plan(unc: &Uncertainty, target: f64) -> Result<()> {
 
 pub fn run_oe(args: &OeArgs) -> Result<()> {
     let rec = args.record.options().read(&args.file, true)?;
+    let rate = choose_rate(
+        &rec.u,
+        &rec.y,
+        args.record.decimate,
+        DiagnoseConfig::auto().fit_fraction,
+    )
+    .with_context(|| format!("{}", args.file.display()))?;
+    let rec = match rate.chosen_by {
+        "data" => rec.decimated(rate.decimate),
+        _ => rec,
+    };
     let opts = OeOptions {
         structure: args.structure.declared(),
         max_delay: args.structure.max_delay()?,
@@ -80,11 +95,13 @@ pub fn run_oe(args: &OeArgs) -> Result<()> {
     if args.residuals.is_some() || args.plot.is_some() {
         write_fit_outputs(args, &rec, &run)?;
     }
-    let out = run.json(args.target_rel)?;
+    let mut out = run.json(args.target_rel)?;
+    with_rate(&mut out, &rate);
     if args.json {
         print_json(out, &args.file);
         return Ok(());
     }
+    println!("Rate ({}): {}", rate.chosen_by, rate.reason);
     print_oe(args, &run)?;
     print_warnings(&out);
     Ok(())

@@ -9,8 +9,10 @@
 //!
 //! Nothing here names an effect: an extension's behaviour comes from its effect (`crate::diagnose::effects`).
 
+pub(crate) mod linear_oe;
 pub mod lm;
 pub mod model;
 pub mod problem;
+pub mod rate;
 pub mod starts;
 pub mod structure;

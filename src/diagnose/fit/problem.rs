@@ -21,6 +21,7 @@ use crate::diagnose::fit::model::{
 };
 use crate::diagnose::fit::structure::Structure;
 use crate::identify::mrgia::{Mrgia, MrgiaConfig};
+use crate::identify::oe::{self, OeConfig};
 use crate::stats::std_dev;
 
 /// Exploration (screening grids of starts, short runs) uses at most this many samples of the fit part.
@@ -370,6 +371,25 @@ impl<'a> Problem<'a> {
         })
     }
 
+    /// The output-error fit of `identify oe` (from MRGIA's estimates, from rest at 0) on the fit part, as a
+    /// start; `None` when it refuses the record.
+    pub fn oe_start(&self, s: Structure) -> Option<BaseModel> {
+        let cfg = OeConfig::new(s.na, s.nb, s.delay);
+        let f = oe::fit(&cfg, &self.u[..self.n_fit], &self.y[..self.n_fit]).ok()?;
+        let e = f.estimate;
+        Some(BaseModel {
+            na: s.na,
+            nb: s.nb,
+            delay: s.delay,
+            a: e.a,
+            b: e.b,
+            m1: 1.0,
+            m2: e.m2,
+            c1: e.c1,
+            c2: e.c2,
+        })
+    }
+
     /// Equation-error least squares of y on its past, the delayed inputs and a constant, on the fit part:
     /// (a, b, the constant as an output offset: `y = x + offset` with x the linear block's output). `None` when the record is too short for the structure or the equations are singular.
     pub fn arx(&self, s: Structure) -> Option<(Vec<f64>, Vec<f64>, f64)> {
@@ -477,7 +497,16 @@ pub(crate) fn fit_linear(p: &Problem, s: Structure) -> Option<(BaseModel, f64)> 
     ];
     let mut typ = coefficient_scales(na, &b, gain);
     typ.push(p.y_scale);
-    let (th, cost) = p.fit_packed(&unpack, &starts, &typ, Objective::Simulation)?;
+    // When the fit fails on the whole fit part (a point explored on the window that is not valid over the
+    // whole of it), the best valid start is the linear model: a record is never refused for want of one.
+    let (th, cost) = p
+        .fit_packed(&unpack, &starts, &typ, Objective::Simulation)
+        .or_else(|| {
+            starts
+                .iter()
+                .filter_map(|th| Some((th.clone(), p.cost(&unpack(th), Objective::Simulation)?)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+        })?;
     Some((unpack(&th).base, cost))
 }
 
@@ -515,7 +544,8 @@ pub(crate) fn stabilize(a: &mut [f64]) {
 
 /// The plain model's starts: MRGIA's estimate, the least-squares model with unit slopes and its constant
 /// turned into gaps around a small play, a start without dynamics, every one stable and with its play open;
-/// then the linear model (`linear`, no play) and the linear model with a small play opened around it.
+/// then the fit of `identify oe` on the fit part, the linear model (`linear`, no play) and the linear model with a
+/// small play opened around it.
 fn plain_starts(p: &Problem, s: Structure, linear: &BaseModel) -> Vec<BaseModel> {
     let mut starts: Vec<BaseModel> = Vec::new();
     starts.extend(p.mrgia_start(s));
@@ -538,6 +568,9 @@ fn plain_starts(p: &Problem, s: Structure, linear: &BaseModel) -> Vec<BaseModel>
         stabilize(&mut m.a);
         open_play(m, 0.01 * p.y_scale);
     }
+    // The output-error fit of `identify oe` on the fit part (its own starts and fitter), so that a declared
+    // structure starts where `identify oe` ends.
+    starts.extend(p.oe_start(s));
     // The linear model itself (no play) and with a small play opened around it.
     starts.push(linear.clone());
     starts.push(BaseModel {
@@ -569,7 +602,13 @@ pub(crate) fn fit_plain(
         .map(EffectModel::plain)
         .collect();
     let template = models[0].clone();
-    let (mut best, mut cost) = p.fit(&template, &models, Objective::Simulation)?;
+    let (lin, lin_cost) = linear;
+    // A fit that fails on the whole fit part (see `fit_linear`) leaves the linear model.
+    let Some((mut best, mut cost)) = p.fit(&template, &models, Objective::Simulation) else {
+        return lin_cost
+            .is_finite()
+            .then(|| (EffectModel::plain(lin.clone()), *lin_cost));
+    };
     // Perturbed restarts around the best. On a long record a restart is explored on the window and refined
     // on the whole fit part only if the optimum it reaches there is lower than the best's own optimum there
     // (the best, refined on the whole fit part, sits off the window's optimum: its raw window cost would let
@@ -626,7 +665,6 @@ pub(crate) fn fit_plain(
             cost = c;
         }
     }
-    let (lin, lin_cost) = linear;
     if cost > *lin_cost {
         return Some((EffectModel::plain(lin.clone()), *lin_cost));
     }
@@ -768,7 +806,8 @@ mod tests {
         let s = p.y_scale;
         let close = |a: f64, b: f64| (a - b).abs() < 1e-6;
         let n_mrgia = usize::from(p.mrgia_start(st).is_some());
-        assert_eq!(starts.len(), n_mrgia + 4);
+        let n_oe = usize::from(p.oe_start(st).is_some());
+        assert_eq!(starts.len(), n_mrgia + 4 + n_oe);
         let ls = &starts[n_mrgia];
         assert!(close(ls.b[0], 2.0), "{ls:?}");
         assert!(
@@ -778,8 +817,8 @@ mod tests {
         let flat = &starts[n_mrgia + 1];
         assert!(close(flat.b[0], 2.0), "{flat:?}");
         assert!(flat.c1 == 0.01 * s && flat.c2 == 0.01 * s, "{flat:?}");
-        assert_eq!(starts[n_mrgia + 2], linear);
-        let opened = &starts[n_mrgia + 3];
+        assert_eq!(starts[n_mrgia + 2 + n_oe], linear);
+        let opened = &starts[n_mrgia + 3 + n_oe];
         assert!(opened.c1 == -0.7 + 0.01 * s && opened.c2 == 0.9 + 0.01 * s);
         assert_eq!(opened.b, linear.b);
     }

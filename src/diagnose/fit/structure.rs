@@ -1,27 +1,37 @@
-//! Choosing the orders and the delay from the data, on the fit part only.
+//! Choosing the orders and the delay from the data, on the fit part only: the one selection that
+//! `diagnose`, `identify oe` and the Python functions call (`choose`).
 //!
 //! The fit part's first [`SELECT_SAMPLES`] samples (at most) are split in two: the first two thirds
 //! *estimate*, the last third *validates*; nothing of the held-out part is seen. Every structure with
 //! na, nb in 0..=4 and delay in 1..=`max_delay` (and at most a tenth of the fit part, and short enough for
-//! the record) is scored in two stages:
+//! the record) is scored in two stages, both by **free-run simulation error** (what the models are judged
+//! by), never by equation error:
 //!
-//! 1. its equation-error (ARX) least-squares fit with a constant, on the estimation part, simulated free-run
-//!    over both parts: the validation RMSE ranks all structures cheaply;
-//! 2. the five best of them, and the best static one (na = nb = 0), get the full backlash fit (linear model,
-//!    then the backlash model from all its starts) on the estimation part; their free-run RMSE on the
-//!    validation part decides.
+//! 1. its linear output-error model (`linear_oe`: started from the equation-error
+//!    least-squares fit, stabilised, and from its FIR part, refined by a few Levenberg-Marquardt
+//!    iterations) on the estimation part, simulated free-run over both parts: the validation RMSE ranks all
+//!    structures cheaply. (Least-squares equation-error fits of a record sampled far faster than its
+//!    dynamics predict one step ahead well and simulate poorly; ranked by their own simulation, the right
+//!    structures lost to a constant.)
+//! 2. the five best of them, the four smallest within 10% of the best linear error, and the best static one
+//!    (na = nb = 0), get the full backlash fit (from the
+//!    stage-1 linear model and the plain model's other starts) on the estimation part; their free-run RMSE
+//!    on the validation part decides. A structure whose fitted model the record does not excite (the test
+//!    by which `identify oe` refuses an estimate, [`crate::identify::oe::check_excited`]) is not eligible:
+//!    the best identifiable one wins and the choice says what it replaced.
 //!
 //! The chosen structure is the one with the fewest parameters among those within 1% of the lowest
-//! validation error (then the shortest delay): a free-run error on data the fit did not see rewards the
-//! structure that simulates well, not the one that predicts one step ahead well (equation-error criteria
-//! such as an ARX fit's BIC favour high orders that simulate poorly).
+//! validation error (then the shortest delay).
 
 use rayon::prelude::*;
 use serde::Serialize;
 
+use crate::diagnose::fit::linear_oe::{self, LinearOe};
 use crate::diagnose::fit::lm::LmOptions;
-use crate::diagnose::fit::model::{EffectModel, Rest};
-use crate::diagnose::fit::problem::{Problem, fit_linear, fit_plain, linear_base, stabilize};
+use crate::diagnose::fit::model::{BaseModel, EffectModel, Objective, Rest};
+use crate::diagnose::fit::problem::{Problem, fit_plain, linear_base, stabilize};
+use crate::identify::mrgia::Estimate;
+use crate::identify::oe::check_excited;
 use crate::plant::{MAX_DELAY, MAX_ORDER};
 use crate::stats::{below_by, rms_diff};
 
@@ -31,14 +41,20 @@ pub const SELECT_SAMPLES: usize = 30_000;
 /// How many structures of stage 1 get the full fit (besides the best static one).
 const STAGE2: usize = 5;
 
+/// How many of the smallest structures near the best linear error stage 2 also fits (see [`stage2_picks`]).
+const STAGE2_SMALL: usize = 4;
+
+/// "Near the best linear error": within this fraction of it.
+const LINEAR_BAND: f64 = 0.1;
+
 /// Within this relative margin of the lowest validation error, the simplest structure wins.
 const MARGIN: f64 = 0.01;
 
 /// The criterion, in words, for reports.
 pub const CRITERION: &str = "free-run RMSE on the last third of the fit part's first samples of the backlash \
-model fitted on the first two thirds (structures ranked first by their equation-error fit's free-run RMSE \
-there, the five best and the best static one fitted fully); the fewest parameters within 1% of the lowest \
-error wins, then the shortest delay";
+model fitted on the first two thirds (structures ranked first by their linear output-error model's free-run \
+RMSE there, the five best, the four smallest within 10% of the best and the best static one fitted fully; a structure whose fit the record does not \
+excite is not eligible); the fewest parameters within 1% of the lowest error wins, then the shortest delay";
 
 /// A model structure: `na` a coefficients, b_0..b_nb, input delay in samples.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
@@ -70,10 +86,13 @@ impl std::fmt::Display for Structure {
 pub struct StructureCandidate {
     #[serde(flatten)]
     pub structure: Structure,
-    /// Validation free-run RMSE of the equation-error fit (`None`: it could not be fitted).
-    pub arx_rmse: Option<f64>,
+    /// Validation free-run RMSE of the linear output-error model (`None`: it could not be fitted).
+    pub linear_rmse: Option<f64>,
     /// Validation free-run RMSE of the backlash model (`None`: not fitted in stage 2).
     pub model_rmse: Option<f64>,
+    /// Whether the record excites every parameter of the fitted backlash model (`None`: not fitted in
+    /// stage 2). A structure that does not is never chosen.
+    pub excited: Option<bool>,
     pub chosen: bool,
 }
 
@@ -90,6 +109,17 @@ pub struct StructureChoice {
     /// Stage-2 structures first (by validation error), then the rest of stage 1 (by its error).
     pub candidates: Vec<StructureCandidate>,
     pub reason: String,
+    /// A structure that had the lowest error but could not be identified, and what replaced it.
+    pub replaced: Option<Replacement>,
+}
+
+/// A structure set aside because the record does not excite its parameters.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Replacement {
+    /// The structure set aside.
+    pub structure: Structure,
+    /// Why, and what replaced it, in words.
+    pub reason: String,
 }
 
 impl StructureChoice {
@@ -103,6 +133,7 @@ impl StructureChoice {
             validation_samples: 0,
             candidates: Vec::new(),
             reason: format!("declared: {s}"),
+            replaced: None,
         }
     }
 }
@@ -211,61 +242,173 @@ fn estimation_len(n_w: usize) -> usize {
     (2 * n_w / 3).max(1)
 }
 
+/// The stage-1 linear output-error model of `s` on the estimation part of `p` (samples `0..n_est`), from the
+/// least-squares fit (stabilised) and from its FIR part; the lower fit cost wins. `v` is the input measured
+/// from the rest level.
+fn stage1_fit(p: &Problem, v: &[f64], s: Structure, n_est: usize) -> Option<LinearOe> {
+    let est = p.shortened(n_est);
+    let rest = p.rest.0;
+    let mean_y = crate::stats::mean(&p.y[..n_est]);
+    let (mut a, b, offset) = est
+        .arx(s)
+        .unwrap_or((vec![0.0; s.na], vec![0.0; s.nb + 1], mean_y));
+    stabilize(&mut a);
+    let gain = linear_base(s, &a, &b, offset).static_gain();
+    let c = offset + gain * rest;
+    let mut fir = vec![0.0; s.nb + 1];
+    fir[0] = gain;
+    let starts = [
+        LinearOe { a, b, c },
+        LinearOe {
+            a: vec![0.0; s.na],
+            b: fir,
+            c,
+        },
+    ];
+    let d = linear_oe::Data {
+        v,
+        y: p.y,
+        delay: s.delay,
+        n: n_est,
+    };
+    starts
+        .into_iter()
+        .filter_map(|m| linear_oe::fit(m, &d, linear_oe::RANK_ITER))
+        .min_by(|x, y| x.1.total_cmp(&y.1))
+        .map(|(m, _)| m)
+}
+
+/// The stage-1 model as the diagnosis's linear model (rest at the problem's rest level).
+fn stage1_base(p: &Problem, s: Structure, m: &LinearOe) -> BaseModel {
+    let lin = linear_base(s, &m.a, &m.b, 0.0);
+    let offset = m.c - lin.static_gain() * p.rest.0;
+    linear_base(s, &m.a, &m.b, offset)
+}
+
+/// Stage 1 (see the module's documentation): every structure's linear output-error model, ranked by its
+/// validation free-run RMSE; each with its model for stage 2.
+fn stage1(
+    p: &Problem,
+    structures: &[Structure],
+    (n_est, n_w): (usize, usize),
+) -> Vec<(StructureCandidate, Option<BaseModel>)> {
+    let v: Vec<f64> = p.u[..n_w].iter().map(|u| u - p.rest.0).collect();
+    let mut out: Vec<(StructureCandidate, Option<BaseModel>)> = structures
+        .par_iter()
+        .map(|&s| {
+            let fitted = stage1_fit(p, &v, s, n_est);
+            let linear_rmse = fitted.as_ref().and_then(|m| {
+                let x = linear_oe::simulate(m, &v, s.delay, n_w);
+                let e = p.y[n_est..n_w]
+                    .iter()
+                    .zip(&x[n_est..])
+                    .map(|(y, x)| y - x - m.c);
+                Some(crate::stats::rms(e)).filter(|r| r.is_finite())
+            });
+            let candidate = StructureCandidate {
+                structure: s,
+                linear_rmse,
+                model_rmse: None,
+                excited: None,
+                chosen: false,
+            };
+            (candidate, fitted.map(|m| stage1_base(p, s, &m)))
+        })
+        .collect();
+    let key = |c: &StructureCandidate| c.linear_rmse.unwrap_or(f64::INFINITY);
+    out.sort_by(|a, b| key(&a.0).total_cmp(&key(&b.0)));
+    out
+}
+
+/// Stage 2 of one structure: the backlash model fitted on the estimation part from the stage-1 linear
+/// model, its validation free-run RMSE and whether the record excites its parameters.
+fn stage2(
+    p: &Problem,
+    lin: &BaseModel,
+    (n_est, n_w): (usize, usize),
+) -> (Option<f64>, Option<bool>) {
+    let est = p.shortened(n_est);
+    let s = Structure {
+        na: lin.na,
+        nb: lin.nb,
+        delay: lin.delay,
+    };
+    let fitted = est
+        .cost(&EffectModel::plain(lin.clone()), Objective::Simulation)
+        .and_then(|c| fit_plain(&est, s, 0, 0, &(lin.clone(), c)));
+    let Some((m, _)) = fitted else {
+        return (None, None);
+    };
+    let rmse = m
+        .simulate(p.u, p.rest, n_w, p.limit)
+        .map(|sim| rms_diff(&p.y[n_est..n_w], &sim.y[n_est..n_w]))
+        .filter(|v| v.is_finite());
+    let b = &m.base;
+    let estimate = Estimate {
+        a: b.a.clone(),
+        b: b.b.clone(),
+        m1: b.m1,
+        m2: b.m2,
+        c1: b.c1,
+        c2: b.c2,
+    };
+    let excited = check_excited(&estimate, s.delay, &p.u[..n_est], &p.y[..n_est]).is_ok();
+    (rmse, Some(excited))
+}
+
+/// The stage-1 candidates (ranked by their linear error) that stage 2 fits fully: the [`STAGE2`] best, the
+/// [`STAGE2_SMALL`] smallest among those within [`LINEAR_BAND`] of the best linear error (a backlash or
+/// another nonlinearity the linear model lacks leaves every linear structure with nearly the same error,
+/// and the order among them is then no guide), and the best static one.
+fn stage2_picks(ranked: &[StructureCandidate]) -> Vec<usize> {
+    let mut picked: Vec<usize> = (0..ranked.len().min(STAGE2)).collect();
+    let best = ranked
+        .first()
+        .and_then(|c| c.linear_rmse)
+        .unwrap_or(f64::INFINITY);
+    let mut band: Vec<usize> = (0..ranked.len())
+        .filter(|&i| {
+            ranked[i]
+                .linear_rmse
+                .is_some_and(|r| r <= best * (1.0 + LINEAR_BAND))
+        })
+        .collect();
+    band.sort_by_key(|&i| {
+        let s = ranked[i].structure;
+        (s.n_params(), s.delay, s.na)
+    });
+    let stat = ranked
+        .iter()
+        .position(|c| c.structure.na == 0 && c.structure.nb == 0);
+    for i in band.into_iter().take(STAGE2_SMALL).chain(stat) {
+        if !picked.contains(&i) {
+            picked.push(i);
+        }
+    }
+    picked
+}
+
 /// Choose the structure on the fit part of `p` (see the module's documentation). `n_total` is the record's
 /// length (a structure must leave enough samples).
 pub(crate) fn select(p: &Problem, max_delay: usize, n_total: usize) -> StructureChoice {
     let n_w = p.n_fit.min(SELECT_SAMPLES);
     let n_est = estimation_len(n_w);
-    let est = p.shortened(n_est);
-    let validation = |m: &EffectModel| {
-        m.simulate(p.u, p.rest, n_w, p.limit)
-            .map(|s| rms_diff(&p.y[n_est..n_w], &s.y[n_est..n_w]))
-            .filter(|v| v.is_finite())
-    };
-    // Stage 1: equation-error fits of every structure.
     let structures = grid(max_delay, p.n_fit, n_total);
-    let mut stage1: Vec<StructureCandidate> = structures
+    let mut ranked = stage1(p, &structures, (n_est, n_w));
+    let picked = stage2_picks(&ranked.iter().map(|(c, _)| c.clone()).collect::<Vec<_>>());
+    let fitted: Vec<(Option<f64>, Option<bool>)> = picked
         .par_iter()
-        .map(|&s| {
-            let arx_rmse = est.arx(s).and_then(|(mut a, b, o)| {
-                stabilize(&mut a);
-                validation(&EffectModel::plain(linear_base(s, &a, &b, o)))
-            });
-            StructureCandidate {
-                structure: s,
-                arx_rmse,
-                model_rmse: None,
-                chosen: false,
-            }
+        .map(|&i| match &ranked[i].1 {
+            Some(lin) => stage2(p, lin, (n_est, n_w)),
+            None => (None, None),
         })
         .collect();
-    stage1.sort_by(|a, b| {
-        let key = |c: &StructureCandidate| c.arx_rmse.unwrap_or(f64::INFINITY);
-        key(a).total_cmp(&key(b))
-    });
-    // Stage 2: the best few and the best static structure, fitted fully.
-    let mut picked: Vec<usize> = (0..stage1.len().min(STAGE2)).collect();
-    if let Some(i) = stage1
-        .iter()
-        .position(|c| c.structure.na == 0 && c.structure.nb == 0)
-        && !picked.contains(&i)
-    {
-        picked.push(i);
+    for (&i, (r, x)) in picked.iter().zip(fitted) {
+        ranked[i].0.model_rmse = r;
+        ranked[i].0.excited = x;
     }
-    let fitted: Vec<Option<f64>> = picked
-        .par_iter()
-        .map(|&i| {
-            let s = stage1[i].structure;
-            let linear = fit_linear(&est, s)?;
-            let (m, _) = fit_plain(&est, s, 0, 0, &linear)?;
-            validation(&m)
-        })
-        .collect();
-    for (&i, r) in picked.iter().zip(fitted) {
-        stage1[i].model_rmse = r;
-    }
-    let (chosen, reason) = decide(&stage1);
-    let mut candidates = stage1;
+    let mut candidates: Vec<StructureCandidate> = ranked.into_iter().map(|(c, _)| c).collect();
+    let (chosen, reason, replaced) = decide(&candidates);
     for c in &mut candidates {
         c.chosen = c.structure == chosen;
     }
@@ -283,22 +426,70 @@ pub(crate) fn select(p: &Problem, max_delay: usize, n_total: usize) -> Structure
         validation_samples: n_w - n_est,
         candidates,
         reason,
+        replaced,
     }
 }
 
-/// Choose the structure for a fit on the whole record (`identify oe` without orders): the record is the fit
-/// part. `max_delay` is clamped to the plant's bound.
-pub fn select_for_record(u: &[f64], y: &[f64], max_delay: usize) -> StructureChoice {
+/// The fit part's length of a record of `n` samples (at least 2) for the share `fit_fraction`: at least 1
+/// sample, and at least 1 left to hold out. `diagnose` and `identify oe` split alike.
+pub fn fit_len(n: usize, fit_fraction: f64) -> usize {
+    ((n as f64 * fit_fraction).round() as usize).clamp(1, n.saturating_sub(1).max(1))
+}
+
+/// The initial state and the structure of the record in `p` (declared, or chosen on its fit part), with
+/// the problem's rest level set to the chosen initial state: the one choice that `diagnose` and
+/// `identify oe` (through [`select_for_record`]) make.
+pub(crate) fn choose(
+    p: &mut Problem,
+    declared: Option<Structure>,
+    max_delay: usize,
+) -> (InitialState, StructureChoice) {
+    let n = p.u.len();
+    (p.progress)("choosing the initial state");
+    let initial = initial_state(
+        p,
+        &match declared {
+            Some(s) => vec![s],
+            None => grid(max_delay, p.n_fit, n),
+        },
+    );
+    if let Some(&u0) = p.u.first() {
+        p.rest = initial.rest_for(u0);
+    }
+    let choice = match declared {
+        Some(s) => StructureChoice::declared(s),
+        None => {
+            (p.progress)("choosing the structure (orders and delay)");
+            select(p, max_delay, n)
+        }
+    };
+    (initial, choice)
+}
+
+/// The structure of a record as `diagnose` chooses it with the fit share `fit_fraction` (the same
+/// selection on the same part of the record), for a fit on the whole record (`identify oe` without orders).
+/// `max_delay` is clamped to the plant's bound.
+pub fn select_for_record(
+    u: &[f64],
+    y: &[f64],
+    max_delay: usize,
+    fit_fraction: f64,
+) -> StructureChoice {
     let n = u.len().min(y.len());
     if n < 2 {
         return decide_empty();
     }
-    let p = Problem::new(&u[..n], &y[..n], n, LmOptions::default());
-    select(&p, max_delay.clamp(1, MAX_DELAY), n)
+    let mut p = Problem::new(
+        &u[..n],
+        &y[..n],
+        fit_len(n, fit_fraction),
+        LmOptions::default(),
+    );
+    choose(&mut p, None, max_delay.clamp(1, MAX_DELAY)).1
 }
 
 fn decide_empty() -> StructureChoice {
-    let (chosen, reason) = decide(&[]);
+    let (chosen, reason, replaced) = decide(&[]);
     StructureChoice {
         chosen,
         chosen_by: "selected",
@@ -307,25 +498,32 @@ fn decide_empty() -> StructureChoice {
         validation_samples: 0,
         candidates: Vec::new(),
         reason,
+        replaced,
     }
 }
 
-/// The fewest parameters within [`MARGIN`] of the lowest stage-2 error, then the shortest delay, then the
-/// fewest a's. With no structure fitted: the smallest one.
-fn decide(c: &[StructureCandidate]) -> (Structure, String) {
+/// The smallest structure, used when nothing could be fitted.
+const SMALLEST: Structure = Structure {
+    na: 0,
+    nb: 0,
+    delay: 1,
+};
+
+/// The fewest parameters within [`MARGIN`] of the lowest stage-2 error among the structures the record
+/// excites, then the shortest delay, then the fewest a's; with the structure of lower error set aside for
+/// want of excitation, if any. With no structure fitted: the smallest one.
+fn decide(c: &[StructureCandidate]) -> (Structure, String, Option<Replacement>) {
     let scored: Vec<(&StructureCandidate, f64)> = c
         .iter()
+        .filter(|c| c.excited != Some(false))
         .filter_map(|c| c.model_rmse.map(|r| (c, r)))
         .collect();
     let Some(best) = scored.iter().map(|(_, r)| *r).min_by(f64::total_cmp) else {
-        let s = Structure {
-            na: 0,
-            nb: 0,
-            delay: 1,
-        };
+        let s = SMALLEST;
         return (
             s,
             format!("no structure could be fitted on the fit part; the smallest is used ({s})"),
+            None,
         );
     };
     let (chosen, err) = scored
@@ -349,7 +547,21 @@ fn decide(c: &[StructureCandidate]) -> (Structure, String) {
             100.0 * MARGIN
         )
     };
-    (chosen, reason)
+    let replaced = c
+        .iter()
+        .filter(|c| c.excited == Some(false))
+        .filter_map(|c| c.model_rmse.map(|r| (c.structure, r)))
+        .filter(|(_, r)| *r < err)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(s, r)| Replacement {
+            structure: s,
+            reason: format!(
+                "{s} had a lower validation free-run RMSE ({r:.4e}) but the record does not excite all of its \
+                 parameters (an output-error fit would refuse it); the best identifiable structure, {chosen}, \
+                 replaces it"
+            ),
+        });
+    (chosen, reason, replaced)
 }
 
 /// The fewest samples a structure needs: 100 plus 20 per order and delay sample.
@@ -386,8 +598,9 @@ mod tests {
     fn cand(na: usize, nb: usize, delay: usize, rmse: Option<f64>) -> StructureCandidate {
         StructureCandidate {
             structure: Structure { na, nb, delay },
-            arx_rmse: None,
+            linear_rmse: None,
             model_rmse: rmse,
+            excited: rmse.map(|_| true),
             chosen: false,
         }
     }
@@ -400,7 +613,7 @@ mod tests {
             cand(0, 0, 1, Some(1.02)),
             cand(1, 0, 2, Some(1.005)),
         ];
-        let (s, why) = decide(&c);
+        let (s, why, _) = decide(&c);
         assert_eq!(
             s,
             Structure {
@@ -412,7 +625,7 @@ mod tests {
         assert!(why.contains("within 1%"), "{why}");
         // Outside the margin the best wins.
         let c = [cand(2, 1, 1, Some(1.0)), cand(1, 0, 1, Some(1.011))];
-        let (s, why) = decide(&c);
+        let (s, why, _) = decide(&c);
         assert_eq!(
             s,
             Structure {
@@ -437,7 +650,7 @@ mod tests {
             }
         );
         // Nothing fitted: the smallest structure, said so.
-        let (s, why) = decide(&[cand(1, 1, 1, None)]);
+        let (s, why, _) = decide(&[cand(1, 1, 1, None)]);
         assert_eq!(
             s,
             Structure {
@@ -447,6 +660,31 @@ mod tests {
             }
         );
         assert!(why.contains("no structure"));
+    }
+
+    /// A structure the record does not excite is never chosen, however low its error: the best identifiable
+    /// one replaces it, and the choice says so.
+    #[test]
+    fn an_unexcited_structure_is_replaced_by_the_best_identifiable_one() {
+        let mut bad = cand(4, 4, 1, Some(0.5));
+        bad.excited = Some(false);
+        let c = [bad, cand(1, 0, 1, Some(1.0)), cand(0, 0, 1, Some(2.0))];
+        let (s, _, replaced) = decide(&c);
+        assert_eq!(
+            s,
+            Structure {
+                na: 1,
+                nb: 0,
+                delay: 1
+            }
+        );
+        let r = replaced.expect("the replacement is reported");
+        assert_eq!(r.structure, c[0].structure);
+        assert!(r.reason.contains("does not excite"), "{}", r.reason);
+        // Nothing replaced when the unexcited structure was worse anyway.
+        let mut worse = cand(4, 4, 1, Some(3.0));
+        worse.excited = Some(false);
+        assert!(decide(&[worse, cand(1, 0, 1, Some(1.0))]).2.is_none());
     }
 
     #[test]
@@ -460,7 +698,7 @@ mod tests {
         for k in 2..n {
             y[k] = 0.5 * y[k - 1] + 0.8 * u[k - 2];
         }
-        let c = select_for_record(&u, &y, 3);
+        let c = select_for_record(&u, &y, 3, 0.7);
         let flagged: Vec<Structure> = c
             .candidates
             .iter()

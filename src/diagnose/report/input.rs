@@ -44,6 +44,8 @@ pub struct ReportInput<'a> {
     pub u: &'a [f64],
     pub y: &'a [f64],
     pub decimate: usize,
+    /// How the rate was chosen and why (`None`: not said).
+    pub rate: Option<String>,
     /// The CSV's names of the time, input and output columns with their units where the header gives them
     /// (`y [kN]`): the figures' axes.
     pub columns: [&'a str; 3],

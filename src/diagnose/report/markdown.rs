@@ -217,6 +217,19 @@ fn section_header(s: &mut String, d: &Diagnosis, input: &ReportInput) {
         d.n - d.n_fit,
         d.initial.reason
     );
+    if let Some(r) = &input.rate {
+        let _ = writeln!(s, "Sampling rate: {r}.\n");
+    }
+    if let Some(c) = d.closest_alternative() {
+        let _ = writeln!(
+            s,
+            "Closest alternative: `{}` was rejected ({}) although its held-out error, {}, is below the chosen model's, {}.\n",
+            c.id.as_str(),
+            c.reason,
+            fmt(c.heldout_rmse),
+            fmt(c.chosen_heldout_rmse)
+        );
+    }
 }
 
 /// The record's warnings (the JSON's `warnings`): what the record cannot support.
@@ -243,7 +256,7 @@ fn section_structure(s: &mut String, d: &Diagnosis) {
         );
         let _ = writeln!(
             s,
-            "| na | nb | delay | equation-error fit, validation RMSE | backlash model, validation RMSE | chosen |"
+            "| na | nb | delay | linear output-error model, validation RMSE | backlash model, validation RMSE | chosen |"
         );
         let _ = writeln!(s, "| --- | --- | --- | --- | --- | --- |");
         let opt = |v: Option<f64>| v.map_or("-".to_string(), fmt);
@@ -254,7 +267,7 @@ fn section_structure(s: &mut String, d: &Diagnosis) {
                 c.structure.na,
                 c.structure.nb,
                 c.structure.delay,
-                opt(c.arx_rmse),
+                opt(c.linear_rmse),
                 opt(c.model_rmse),
                 if c.chosen { "**yes**" } else { "" }
             );

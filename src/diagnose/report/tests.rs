@@ -45,6 +45,7 @@ impl Case {
             u: &self.s.u,
             y: &self.s.y,
             decimate: 1,
+            rate: None,
             columns: COLUMNS,
             command: None,
             validations,

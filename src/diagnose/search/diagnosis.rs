@@ -105,6 +105,18 @@ pub struct OneStep {
     pub after: f64,
 }
 
+/// A rejected candidate with a lower held-out error than the chosen model ([`Diagnosis::closest_alternative`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ClosestAlternative {
+    pub id: EffectId,
+    /// Its held-out free-run RMSE.
+    pub heldout_rmse: f64,
+    /// The chosen (final) model's.
+    pub chosen_heldout_rmse: f64,
+    /// Why the decision rejected it.
+    pub reason: String,
+}
+
 /// One fitted candidate extension.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Candidate {
@@ -256,6 +268,29 @@ impl Diagnosis {
         self.steps()
             .last()
             .map_or(self.base_heldout_rmse, |c| c.heldout_rmse)
+    }
+
+    /// A candidate the decision rejected (in any round) whose held-out free-run error is lower than the
+    /// final model's by at least [`decision::MIN_FALL`] (the fall the decision itself asks of a candidate):
+    /// the lowest such one, so that the user can judge (`None` when no rejected candidate is that much
+    /// lower; noise models, judged by prediction, are not compared).
+    pub fn closest_alternative(&self) -> Option<ClosestAlternative> {
+        let after = self.after_rmse();
+        let kept: Vec<&Candidate> = self.steps();
+        self.candidates
+            .iter()
+            .chain(self.later.iter().flat_map(|r| r.found.candidates.iter()))
+            .filter(|c| !kept.iter().any(|k| std::ptr::eq(*k, *c)))
+            .filter(|c| {
+                c.error_kind == SIMULATION && c.heldout_rmse < after * (1.0 - decision::MIN_FALL)
+            })
+            .min_by(|a, b| a.heldout_rmse.total_cmp(&b.heldout_rmse))
+            .map(|c| ClosestAlternative {
+                id: c.id,
+                heldout_rmse: c.heldout_rmse,
+                chosen_heldout_rmse: after,
+                reason: c.reason.clone(),
+            })
     }
 
     /// The test that points to the chosen effect: the first of its pointing tests (most specific first, see

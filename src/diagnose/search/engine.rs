@@ -107,22 +107,7 @@ pub fn diagnose_with_progress(
 ) -> Result<Diagnosis, DiagnoseError> {
     check_record(u, y, cfg)?;
     let mut problem = problem_of(u, y, cfg, progress)?;
-    progress("choosing the initial state");
-    let initial = structure::initial_state(
-        &problem,
-        &match cfg.structure {
-            Some(s) => vec![s],
-            None => structure::grid(cfg.max_delay, problem.n_fit, u.len()),
-        },
-    );
-    problem.rest = initial.rest_for(u[0]);
-    let choice = match cfg.structure {
-        Some(s) => StructureChoice::declared(s),
-        None => {
-            progress("choosing the structure (orders and delay)");
-            structure::select(&problem, cfg.max_delay, u.len())
-        }
-    };
+    let (initial, choice) = structure::choose(&mut problem, cfg.structure, cfg.max_delay);
     let s = choice.chosen;
     progress(&format!("fitting the linear model ({s})"));
     let linear = fit_linear(&problem, s).ok_or(DiagnoseError::NoFit)?;
@@ -159,7 +144,7 @@ fn problem_of<'a>(
         deadline: Some(Instant::now() + cfg.time_budget),
         ..cfg.lm
     };
-    let n_fit = ((n as f64 * cfg.fit_fraction).round() as usize).clamp(1, n - 1);
+    let n_fit = structure::fit_len(n, cfg.fit_fraction);
     Ok(Problem {
         progress,
         ..Problem::new(u, y, n_fit, lm)

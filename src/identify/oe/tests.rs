@@ -821,3 +821,36 @@ fn grid_refuses_bad_settings_with_the_reason() {
     c.seeds = 0;
     assert_eq!(c.validate(), Err(StudyError::Empty("no seeds")));
 }
+
+/// `identify oe` and `diagnose` without orders choose the same structure on 20 random plants (one
+/// selection, on the same fit part), and `identify oe` never refuses the structure it chose.
+#[test]
+fn identify_oe_and_diagnose_choose_the_same_structure() {
+    let mut rng = ChaCha8Rng::seed_from_u64(3131);
+    for i in 0..20u64 {
+        let plant = PlantParams {
+            noise_std: 0.02,
+            noise_seed: i,
+            ..random_plant(&mut rng)
+        };
+        let u = paper_input(700, 500 + i);
+        let y: Vec<f64> = Plant::simulate(plant, &u)
+            .unwrap()
+            .iter()
+            .map(|o| o.y)
+            .collect();
+        let oe = crate::api::identify_oe(&u, &y, &crate::api::OeOptions::default())
+            .unwrap_or_else(|e| panic!("plant {i}: identify oe refused its own choice: {e}"));
+        let cfg = crate::diagnose::engine::DiagnoseConfig {
+            max_effects: 1,
+            ..crate::diagnose::engine::DiagnoseConfig::auto()
+        };
+        let d = crate::api::diagnose(&u, &y, &cfg).unwrap();
+        // The one exception: the whole record refused the common choice and `identify oe` replaced it,
+        // which it says.
+        if oe.structure.chosen != d.structure.chosen {
+            let replaced = oe.structure.replaced.as_ref().map(|r| r.structure);
+            assert_eq!(replaced, Some(d.structure.chosen), "plant {i}: {plant:?}");
+        }
+    }
+}

@@ -84,13 +84,23 @@ fn plain_fit_opens_a_small_play_on_both_borders_of_the_linear_model() {
         nb: 0,
         delay: 1,
     };
-    let (m, _) = fit_plain(&p, s, 0, 0, &(lin.clone(), f64::INFINITY)).expect("the starts run");
     let want = BaseModel {
         c1: lin.c1 + 0.01 * p.y_scale,
         c2: lin.c2 + 0.01 * p.y_scale,
-        ..lin
+        ..lin.clone()
     };
-    assert_eq!(m.base, want);
+    // The opened start is among the starts exactly; frozen, the fit returns the best start, which is that
+    // one unless `identify oe`'s fit (a start that has iterated on its own) reached lower.
+    assert!(plain_starts(&p, s, &lin).contains(&want));
+    let (m, cost) = fit_plain(&p, s, 0, 0, &(lin.clone(), f64::INFINITY)).expect("the starts run");
+    let want_cost = p
+        .cost(&EffectModel::plain(want.clone()), Objective::Simulation)
+        .expect("the opened start runs");
+    assert!(
+        m.base == want || cost < want_cost,
+        "{:?}: {cost} against {want_cost}",
+        m.base
+    );
 }
 
 /// A start whose memory zone is inverted (c1 + c2 < 0) or narrower than the minimum gets the minimum
