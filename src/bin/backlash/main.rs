@@ -14,6 +14,7 @@ mod structure;
 mod study;
 
 use clap::{Parser, Subcommand};
+use std::io::Write;
 
 #[derive(Parser)]
 #[command(
@@ -60,8 +61,14 @@ enum IdentifyCommand {
 
 /// A reader that closes the pipe early (`backlash ... | head -1`) is no error: `println!` panics on a closed
 /// stdout, and that one panic ends the process quietly with status 0 (the reader wanted no more); every other
-/// panic keeps the default report. One place for every command.
+/// panic keeps the default report. One place for every command; installed once however often `run` is called
+/// (the Python package calls it once per command in one process).
 fn quiet_on_closed_stdout() {
+    static INSTALL: std::sync::Once = std::sync::Once::new();
+    INSTALL.call_once(install_quiet_hook);
+}
+
+fn install_quiet_hook() {
     let default = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {
         let payload = info.payload();
@@ -110,9 +117,22 @@ where
     };
     match result {
         Ok(()) => 0,
+        Err(e) if closed_pipe(&e) => 0,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            // Standard error may be the same closed pipe (`2>&1 | head -1`): nothing is left to tell then, and
+            // `eprintln!` would panic.
+            let _ = writeln!(std::io::stderr(), "error: {e:#}");
             1
         }
     }
+}
+
+/// Whether a command failed only because the reader of its output went away (`| head -1`): the reader wanted
+/// no more, so the program ends quietly with success, as `cat` and `seq` do.
+fn closed_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|cause| {
+        cause
+            .downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
 }
