@@ -356,7 +356,7 @@ impl<'a> Problem<'a> {
         self.include.iter().filter(|&&b| b).count()
     }
 
-    /// Minimise the cost over `[lo, hi]` with a grid of at most `spacing` and golden-section refinement of
+    /// Minimise the cost over `[lo, hi]` with a grid of at most `spacing` and refinement ([`Self::descend`]) of
     /// the best local minima of the grid. `periodic`: the interval is one period of the cost.
     ///
     /// The grid's values come from the prefix sums of [`moments`]; only the points that may be local

@@ -31,7 +31,8 @@
 //!    degree of freedom wins; if none beats the SLS, the SLS is kept with a warning.
 //! 5. The SLS phase search, eq. (25a): the cost is `pi`-periodic in `psi`; a grid over `[0, pi)` with a
 //!    spacing of a quarter of a bin (the scale on which the cost's pieces change, so no basin of the cost
-//!    can fall between grid points) and golden-section refinement of the three best local minima.
+//!    can fall between grid points) and refinement of the three best local minima where the cost's derivative
+//!    vanishes (variable projection, private module `fit`).
 //! 6. Recovery, eqs. (28), (35)-(37): `|G| = (sum_i |alpha_i|^(n/i))^(1/n) / U`,
 //!    `a_i = alpha_i / S^(i/n)`, `d_i = delta_i / S^(i/n)` with `S = sum_i |alpha_i|^(n/i)` for **both**
 //!    borders. Eq. (37) of the paper divides the `delta_i` by the sum over the `|delta_i|`; eqs. (33a)-(34a)
