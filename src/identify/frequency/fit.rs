@@ -31,6 +31,19 @@ pub(super) struct Problem<'a> {
     pub include: Vec<bool>,
     /// Parameters per branch, `n + 1`.
     pub p: usize,
+    /// `(cos rho, sin rho)` of each bin: a row's `cos(rho - psi)` by the angle difference, no cosine per
+    /// solve.
+    trig: Vec<(f64, f64)>,
+}
+
+/// One bin's row at a phase `psi`: `c = cos(rho - psi)`, `s = sin(rho - psi)` (`dc/dpsi`), the averaged
+/// output and the row weight.
+#[derive(Debug, Clone, Copy)]
+struct Row {
+    c: f64,
+    s: f64,
+    w: f64,
+    sw: f64,
 }
 
 /// Least-squares solution of one branch.
@@ -64,22 +77,22 @@ pub(super) fn sigma(rho: f64, psi: f64) -> bool {
 
 /// Column-major weighted design matrix `[1, c, .., c^n]` of a branch's rows `(c, w, weight)` into `a`, and the
 /// weighted right-hand side into `b`.
-fn design(rows: &[(f64, f64, f64)], p: usize, a: &mut Vec<f64>, b: &mut Vec<f64>) {
+fn design(rows: &[Row], p: usize, a: &mut Vec<f64>, b: &mut Vec<f64>) {
     let m = rows.len();
     a.clear();
     a.resize(m * p, 0.0);
     b.clear();
-    for (i, &(c, w, sw)) in rows.iter().enumerate() {
-        let mut v = sw;
+    for (i, row) in rows.iter().enumerate() {
+        let mut v = row.sw;
         for k in 0..p {
             a[k * m + i] = v;
-            v *= c;
+            v *= row.c;
         }
-        b.push(sw * w);
+        b.push(row.sw * row.w);
     }
 }
 
-fn solve_branch(rows: &[(f64, f64, f64)], p: usize) -> Branch {
+fn solve_branch(rows: &[Row], p: usize) -> Branch {
     let m = rows.len();
     if m == 0 {
         return Branch {
@@ -127,6 +140,14 @@ fn householder_lstsq(a: &mut [f64], b: &mut [f64], m: usize, p: usize) -> Option
         return None;
     }
     let mut theta = vec![0.0; p];
+    back_substitute(a, b, &diag, m, &mut theta);
+    Some((theta, residual_ss(b, p)))
+}
+
+/// `R theta = (Q^T b)[..p]` for the reduction of [`householder`] (`R` above the diagonal in `a`, its
+/// diagonal in `diag`); `p` is `theta.len()`.
+fn back_substitute(a: &[f64], b: &[f64], diag: &[f64], m: usize, theta: &mut [f64]) {
+    let p = theta.len();
     for k in (0..p).rev() {
         let mut s = b[k];
         for j in k + 1..p {
@@ -134,7 +155,6 @@ fn householder_lstsq(a: &mut [f64], b: &mut [f64], m: usize, p: usize) -> Option
         }
         theta[k] = s / diag[k];
     }
-    Some((theta, residual_ss(b, p)))
 }
 
 /// The residual sum of squares of a reduced right-hand side.
@@ -185,50 +205,113 @@ fn householder(
 /// Work buffers of [`Problem::cost`], kept per thread between calls.
 #[derive(Default)]
 struct Scratch {
-    asc: Vec<(f64, f64, f64)>,
-    desc: Vec<(f64, f64, f64)>,
+    asc: Vec<Row>,
+    desc: Vec<Row>,
+    work: Work,
+}
+
+/// The buffers of one branch's solve.
+#[derive(Default)]
+struct Work {
     a: Vec<f64>,
     b: Vec<f64>,
     v: Vec<f64>,
     diag: Vec<f64>,
+    theta: Vec<f64>,
 }
 
 thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
 }
 
-/// `solve_branch(rows, p).ss`, in the buffers of `s` (the same arithmetic, without allocating).
-fn branch_ss(
-    rows: &[(f64, f64, f64)],
-    p: usize,
-    a: &mut Vec<f64>,
-    b: &mut Vec<f64>,
-    v: &mut Vec<f64>,
-    diag: &mut Vec<f64>,
-) -> f64 {
+/// `solve_branch(rows, p).ss` in the buffers of `w` (the same arithmetic, without allocating) and, with
+/// `slope`, the derivative of that minimum in `psi` (else 0).
+///
+/// Variable projection (Golub and Pereyra): at the least-squares `theta` the residual is orthogonal to
+/// the columns, so the derivative of the minimum is the partial derivative at fixed `theta`,
+/// `-2 sum_j sw_j r_j f'(c_j) dc_j/dpsi` with `r_j = sw_j (w_j - f(c_j))`: one solve gives the cost and
+/// its slope, accurate where the cost itself only locates its minimum to the square root of rounding.
+fn branch_ss(rows: &[Row], p: usize, w: &mut Work, slope: bool) -> (f64, f64) {
     let m = rows.len();
     if m == 0 {
-        return 0.0;
+        return (0.0, 0.0);
     }
-    design(rows, p, a, b);
-    diag.resize(p, 0.0);
-    if m >= p && householder(a, b, m, p, v, diag) {
-        return residual_ss(b, p);
-    }
-    solve_branch(rows, p).ss
+    design(rows, p, &mut w.a, &mut w.b);
+    w.diag.resize(p, 0.0);
+    w.theta.resize(p, 0.0);
+    let ss = if m >= p && householder(&mut w.a, &mut w.b, m, p, &mut w.v, &mut w.diag) {
+        if slope {
+            back_substitute(&w.a, &w.b, &w.diag, m, &mut w.theta);
+        }
+        residual_ss(&w.b, p)
+    } else {
+        let branch = solve_branch(rows, p);
+        w.theta.copy_from_slice(&branch.theta);
+        branch.ss
+    };
+    (ss, if slope { ss_slope(rows, &w.theta) } else { 0.0 })
 }
 
-impl Problem<'_> {
-    /// The rows `(c, w, weight)` of each branch at phase `psi`.
-    fn rows(&self, psi: f64, asc: &mut Vec<(f64, f64, f64)>, desc: &mut Vec<(f64, f64, f64)>) {
+/// `d/dpsi sum_j (sw_j (w_j - f(c_j)))^2` at fixed coefficients `theta` (lowest power first).
+fn ss_slope(rows: &[Row], theta: &[f64]) -> f64 {
+    let sum: f64 = rows
+        .iter()
+        .map(|row| {
+            // f(c) and f'(c) by Horner.
+            let (mut f, mut df) = (0.0, 0.0);
+            for &t in theta.iter().rev() {
+                df = df * row.c + f;
+                f = f * row.c + t;
+            }
+            row.sw * row.sw * (row.w - f) * df * row.s
+        })
+        .sum();
+    -2.0 * sum
+}
+
+impl<'a> Problem<'a> {
+    /// The cost over the bins `include` of the averaged period (`phase`, `w`), rows weighted by `sw`, `p`
+    /// parameters per branch.
+    pub fn new(
+        phase: &'a [f64],
+        w: &'a [f64],
+        sw: Vec<f64>,
+        include: Vec<bool>,
+        p: usize,
+    ) -> Problem<'a> {
+        let trig = phase
+            .iter()
+            .map(|r| {
+                let (s, c) = r.sin_cos();
+                (c, s)
+            })
+            .collect();
+        Problem {
+            phase,
+            w,
+            sw,
+            include,
+            p,
+            trig,
+        }
+    }
+
+    /// The rows of each branch at phase `psi`.
+    fn rows(&self, psi: f64, asc: &mut Vec<Row>, desc: &mut Vec<Row>) {
         asc.clear();
         desc.clear();
+        let (sp, cp) = psi.sin_cos();
         for j in 0..self.w.len() {
             if !self.include[j] {
                 continue;
             }
-            let r = self.phase[j] - psi;
-            let row = (r.cos(), self.w[j], self.sw[j]);
+            let (cr, sr) = self.trig[j];
+            let row = Row {
+                c: cr * cp + sr * sp,
+                s: sr * cp - cr * sp,
+                w: self.w[j],
+                sw: self.sw[j],
+            };
             if sigma(self.phase[j], psi) {
                 desc.push(row);
             } else {
@@ -249,18 +332,22 @@ impl Problem<'_> {
 
     /// `self.fit(psi).cost()`, bit for bit, without allocating.
     pub fn cost(&self, psi: f64) -> f64 {
+        self.evaluate(psi, false).0
+    }
+
+    /// The cost at `psi` and its derivative in `psi` (on the side of `psi` where the branches are those of
+    /// `psi`: the cost is smooth between the phases where a bin changes branch).
+    fn cost_slope(&self, psi: f64) -> (f64, f64) {
+        self.evaluate(psi, true)
+    }
+
+    fn evaluate(&self, psi: f64, slope: bool) -> (f64, f64) {
         SCRATCH.with_borrow_mut(|s| {
-            let Scratch {
-                asc,
-                desc,
-                a,
-                b,
-                v,
-                diag,
-            } = s;
+            let Scratch { asc, desc, work } = s;
             self.rows(psi, asc, desc);
-            let ss_asc = branch_ss(asc, self.p, a, b, v, diag);
-            ss_asc + branch_ss(desc, self.p, a, b, v, diag)
+            let (ss_asc, g_asc) = branch_ss(asc, self.p, work, slope);
+            let (ss_desc, g_desc) = branch_ss(desc, self.p, work, slope);
+            (ss_asc + ss_desc, g_asc + g_desc)
         })
     }
 
@@ -269,7 +356,7 @@ impl Problem<'_> {
         self.include.iter().filter(|&&b| b).count()
     }
 
-    /// Minimise the cost over `[lo, hi]` with a grid of at most `spacing` and golden-section refinement of
+    /// Minimise the cost over `[lo, hi]` with a grid of at most `spacing` and refinement ([`Self::descend`]) of
     /// the best local minima of the grid. `periodic`: the interval is one period of the cost.
     ///
     /// The grid's values come from the prefix sums of [`moments`]; only the points that may be local
@@ -289,6 +376,11 @@ impl Problem<'_> {
 
     /// The best three local minima of the grid (index, exact cost) from the fast evaluation; `None` if it
     /// found none (its error bound failed).
+    ///
+    /// The points are visited by increasing lower bound (fast value minus its error); once three minima
+    /// are known exactly, a point whose lower bound exceeds the third's value cannot be among the best
+    /// three, nor can any later point. A point is solved exactly only when its bounds leave it possibly a
+    /// local minimum, and a neighbour only when its bounds do not decide the comparison.
     fn grid_minima(&self, grid: &Grid) -> Option<Vec<(usize, f64)>> {
         let pts = &grid.pts;
         let moments = Moments::new(self);
@@ -300,25 +392,38 @@ impl Problem<'_> {
                 moments.cost(x, start, len)
             })
             .collect();
+        let lower = |i: usize| fast[i].map_or(f64::NEG_INFINITY, |(f, e)| f - e);
+        let mut order: Vec<usize> = (0..pts.len()).collect();
+        order.sort_by(|&a, &b| lower(a).total_cmp(&lower(b)));
         let mut exact: Vec<Option<f64>> = vec![None; pts.len()];
         let mut value = |i: usize| *exact[i].get_or_insert_with(|| self.cost(pts[i]));
-        let mut minima = Vec::new();
-        for i in 0..pts.len() {
+        let mut minima: Vec<(usize, f64)> = Vec::new();
+        let mut third = f64::INFINITY;
+        for i in order {
+            if lower(i) > third {
+                break;
+            }
             let (l, r) = grid.neighbours(i);
-            // Within the evaluations' errors, is point i at most its neighbours?
-            let maybe = match (fast[i], fast[l], fast[r]) {
-                (Some((f, e)), Some((fl, el)), Some((fr, er))) => {
-                    f <= fl + e + el && f <= fr + e + er
-                }
-                _ => true,
+            if !maybe_minimum(fast[i], fast[l], fast[r]) {
+                continue;
+            }
+            let v = value(i);
+            let at_most = |n: usize, value: &mut dyn FnMut(usize) -> f64| match fast[n] {
+                Some((f, e)) if v <= f - e => true,
+                Some((f, e)) if v > f + e => false,
+                _ => v <= value(n),
             };
-            if maybe {
-                let v = value(i);
-                if v <= value(l) && v <= value(r) {
-                    minima.push((i, v));
+            if at_most(l, &mut value) && at_most(r, &mut value) {
+                minima.push((i, v));
+                if minima.len() >= 3 {
+                    let mut vals: Vec<f64> = minima.iter().map(|m| m.1).collect();
+                    vals.sort_by(f64::total_cmp);
+                    third = vals[2];
                 }
             }
         }
+        // Grid order, so that ties keep it in `best_three`.
+        minima.sort_by_key(|m| m.0);
         (!minima.is_empty()).then(|| best_three(minima))
     }
 
@@ -335,15 +440,120 @@ impl Problem<'_> {
         best_three(minima)
     }
 
-    /// Golden-section refinement around each grid minimum; the best point found.
+    /// Refinement around each grid minimum (within a grid step); the best point found.
     fn refine(&self, grid: &Grid, minima: &[(usize, f64)]) -> (f64, f64) {
         let (pts, h) = (&grid.pts, grid.step);
         let mut best = (pts[minima[0].0], minima[0].1);
         for &(i, v) in minima {
-            let (x, f) = golden(|x| self.cost(x), pts[i] - h, pts[i] + h, pts[i], v);
+            #[cfg(test)]
+            let (x, f) = if GOLDEN.get() {
+                golden(|x| self.cost(x), pts[i] - h, pts[i] + h, pts[i], v)
+            } else {
+                self.descend(pts[i], v, h)
+            };
+            #[cfg(not(test))]
+            let (x, f) = self.descend(pts[i], v, h);
             if f < best.1 {
                 best = (x, f);
             }
+        }
+        best
+    }
+
+    /// The minimum of the cost in `[x0 - h, x0 + h]`, `x0` (cost `f0`) included. The cost is smooth
+    /// between the phases where a bin changes branch ([`Self::piece`]) and may jump there: the minimum of
+    /// each piece in the bracket ([`Self::piece_descend`], from its point nearest `x0`), the best of them.
+    /// A bracket of a grid step holds two or three pieces: a dozen solves where the golden section on the
+    /// cost took about 46.
+    fn descend(&self, x0: f64, f0: f64, h: f64) -> (f64, f64) {
+        let (lo, hi) = (x0 - h, x0 + h);
+        let mut best = (x0, f0);
+        let mut x = lo;
+        for _ in 0..DESCENT_STEPS {
+            let (a, b) = self.piece(x);
+            let (left, right) = ((a + EDGE).max(lo), b.min(hi));
+            if left < right {
+                let start = x0.max(left).min(right);
+                let (f, g) = self.cost_slope(start);
+                if f < best.1 {
+                    best = (start, f);
+                }
+                let (xm, fm) = self.piece_descend(start, g, left, right);
+                if fm < best.1 {
+                    best = (xm, fm);
+                }
+            }
+            if b >= hi {
+                break;
+            }
+            x = b + EDGE;
+        }
+        best
+    }
+
+    /// The piece `(a, b]` of phases around `psi` on which no included bin changes branch (`rho = psi`
+    /// modulo `pi` for some bin: the partition of [`sigma`] changes just after such a phase).
+    fn piece(&self, psi: f64) -> (f64, f64) {
+        let (mut left, mut right) = (PI, PI);
+        for (j, &r) in self.phase.iter().enumerate() {
+            if self.include[j] {
+                let d = (psi - r).rem_euclid(PI);
+                left = left.min(if d == 0.0 { PI } else { d });
+                right = right.min((r - psi).rem_euclid(PI));
+            }
+        }
+        (psi - left, psi + right)
+    }
+
+    /// The minimum of the smooth cost on `[lo, hi]` inside one piece, from `x` (slope `g`): secant steps
+    /// on the derivative ([`branch_ss`]) inside the bracket its signs leave, an end of the piece tried once
+    /// when a step passes it, bisection when a step leaves the bracket or two steps did not halve it;
+    /// bounded by [`DESCENT_STEPS`]. The best point evaluated and its cost.
+    fn piece_descend(&self, x: f64, g: f64, lo: f64, hi: f64) -> (f64, f64) {
+        let (ends, mut lo, mut hi) = ((lo, hi), lo, hi);
+        let (mut x, mut g) = (x.max(lo).min(hi), g);
+        let mut best = (x, f64::INFINITY);
+        let mut prev: Option<(f64, f64)> = None;
+        let mut widths = [hi - lo; 2];
+        let mut tried = (false, false);
+        for _ in 0..DESCENT_STEPS {
+            if g > 0.0 {
+                hi = hi.min(x);
+            } else if g < 0.0 {
+                lo = lo.max(x);
+            } else {
+                break;
+            }
+            let width = hi - lo;
+            if width <= BRACKET_TOLERANCE {
+                break;
+            }
+            let stalled = width > 0.5 * widths[0];
+            widths = [widths[1], width];
+            let step = match prev {
+                Some((xp, gp)) if gp != g && !stalled => x - g * (x - xp) / (g - gp),
+                None => x - g.signum() * 0.25 * (ends.1 - ends.0),
+                _ => f64::NAN,
+            };
+            let next = if step > lo && step < hi {
+                step
+            } else if step >= hi && hi == ends.1 && !tried.1 {
+                tried.1 = true;
+                hi
+            } else if step <= lo && lo == ends.0 && !tried.0 {
+                tried.0 = true;
+                lo
+            } else {
+                0.5 * (lo + hi)
+            };
+            if (next - x).abs() <= STEP_TOLERANCE * x.abs().max(1.0) {
+                break;
+            }
+            let (f, gn) = self.cost_slope(next);
+            if f < best.1 {
+                best = (next, f);
+            }
+            (prev, x, g) = (Some((x, g)), next, gn);
         }
         best
     }
@@ -360,6 +570,8 @@ impl Problem<'_> {
 thread_local! {
     /// Tests set it to run [`Problem::minimise`] on an exact grid in this thread, as a reference.
     pub(super) static EXACT_GRID: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+    /// Tests set it to refine the grid's minima by the golden section on the cost, as a reference.
+    pub(super) static GOLDEN: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
 
 /// The phase grid of [`Problem::minimise`].
@@ -396,6 +608,28 @@ impl Grid {
     }
 }
 
+/// Within the errors of the fast values `(value, bound)` of a point and its neighbours, may the point be at
+/// most both neighbours? (Always, where a value is missing.)
+fn maybe_minimum(
+    at: Option<(f64, f64)>,
+    left: Option<(f64, f64)>,
+    right: Option<(f64, f64)>,
+) -> bool {
+    match (at, left, right) {
+        (Some((f, e)), Some((fl, el)), Some((fr, er))) => f <= fl + e + el && f <= fr + e + er,
+        _ => true,
+    }
+}
+
+/// Most solves of one [`Problem::piece_descend`], and most pieces of one [`Problem::descend`].
+const DESCENT_STEPS: usize = 60;
+/// [`Problem::piece_descend`] stops when the bracket is this narrow (rad), as the golden section did,
+const BRACKET_TOLERANCE: f64 = 1e-12;
+/// or when a step is this small relative to the phase.
+const STEP_TOLERANCE: f64 = 1e-14;
+/// How far inside a piece its open end is taken (rad): well above the rounding of `rho - psi`.
+const EDGE: f64 = 1e-13;
+
 /// The three lowest of the local minima (index, value), in order; ties keep the grid's order.
 fn best_three(mut minima: Vec<(usize, f64)>) -> Vec<(usize, f64)> {
     minima.sort_by(|a, b| a.1.total_cmp(&b.1));
@@ -403,7 +637,9 @@ fn best_three(mut minima: Vec<(usize, f64)>) -> Vec<(usize, f64)> {
     minima
 }
 
-/// Golden-section search on `[a, b]`, keeping the best point seen (`x0`, `f0` included).
+/// Golden-section search on `[a, b]`, keeping the best point seen (`x0`, `f0` included): the reference
+/// [`Problem::descend`] is tested against.
+#[cfg(test)]
 fn golden(f: impl Fn(f64) -> f64, mut a: f64, mut b: f64, x0: f64, f0: f64) -> (f64, f64) {
     let g = 0.5 * (5f64.sqrt() - 1.0);
     let mut best = (x0, f0);
@@ -526,13 +762,7 @@ mod tests {
                 }
             })
             .collect();
-        let pb = Problem {
-            phase: &phase,
-            w: &w,
-            sw: vec![1.0; b],
-            include: vec![true; b],
-            p: 4,
-        };
+        let pb = Problem::new(&phase, &w, vec![1.0; b], vec![true; b], 4);
         let f = pb.fit(psi);
         assert!(f.cost() < 1e-25);
         let want_a = [0.3, 2.0, 0.0, -1.0];
@@ -554,30 +784,15 @@ mod tests {
         // 300 bins of a cubic-border cycle with deterministic pseudo-noise, a stage excluded or not, a
         // large offset; the prefix-sum cost against the QR cost at 1000 phases, within a tenth of its bound.
         let b = 300;
-        let psi = 0.7;
-        let phase: Vec<f64> = (0..b).map(|j| TAU * j as f64 / b as f64 - 0.3).collect();
-        let w: Vec<f64> = phase
-            .iter()
-            .enumerate()
-            .map(|(j, &r)| {
-                let c = (r - psi).cos();
-                let noise = 0.01 * ((j * 7919 % 1000) as f64 / 500.0 - 1.0);
-                let border = if sigma(r, psi) {
-                    0.3 + 0.8 * c + 0.2 * c * c
-                } else {
-                    -0.25 + 0.9 * c + 0.15 * c * c * c
-                };
-                5.0 + border + noise
-            })
-            .collect();
+        let (phase, w) = noisy_cycle();
         for (degree, excluded) in [(1, 0..0), (3, 0..0), (6, 0..0), (3, 40..70), (6, 200..260)] {
-            let pb = Problem {
-                phase: &phase,
-                w: &w,
-                sw: (0..b).map(|j| (1.0 + (j % 3) as f64).sqrt()).collect(),
-                include: (0..b).map(|j| !excluded.contains(&j)).collect(),
-                p: degree + 1,
-            };
+            let pb = Problem::new(
+                &phase,
+                &w,
+                (0..b).map(|j| (1.0 + (j % 3) as f64).sqrt()).collect(),
+                (0..b).map(|j| !excluded.contains(&j)).collect(),
+                degree + 1,
+            );
             let m = Moments::new(&pb);
             let mut arc = Arc::new(&phase);
             // The largest error as a fraction of its bound.
@@ -593,6 +808,78 @@ mod tests {
             }
             assert!(trusted >= 900, "degree {degree}: {trusted} of 1000 trusted");
             assert!(worst < 0.1, "degree {degree}: error {worst:e} of its bound");
+        }
+    }
+
+    /// 300 bins of a cubic-border cycle at `psi = 0.7` with deterministic pseudo-noise and an offset.
+    fn noisy_cycle() -> (Vec<f64>, Vec<f64>) {
+        let b = 300;
+        let psi = 0.7;
+        let phase: Vec<f64> = (0..b).map(|j| TAU * j as f64 / b as f64 - 0.3).collect();
+        let w = phase
+            .iter()
+            .enumerate()
+            .map(|(j, &r)| {
+                let c = (r - psi).cos();
+                let noise = 0.01 * ((j * 7919 % 1000) as f64 / 500.0 - 1.0);
+                let border = if sigma(r, psi) {
+                    0.3 + 0.8 * c + 0.2 * c * c
+                } else {
+                    -0.25 + 0.9 * c + 0.15 * c * c * c
+                };
+                5.0 + border + noise
+            })
+            .collect();
+        (phase, w)
+    }
+
+    #[test]
+    fn the_cost_slope_is_the_derivative_of_the_cost() {
+        // Against a central difference of the QR cost, between the phases where a bin changes branch.
+        let (phase, w) = noisy_cycle();
+        for degree in [1, 3, 6] {
+            let pb = Problem::new(&phase, &w, vec![1.5; 300], vec![true; 300], degree + 1);
+            for x in [0.4, 0.705, 1.3, 2.9] {
+                // Midway between two bins' phases (and their opposites): one smooth piece around x.
+                let x = x + 0.5 * TAU / 600.0 - (x + 0.3).rem_euclid(TAU / 600.0);
+                let h = 1e-6;
+                let numeric = (pb.cost(x + h) - pb.cost(x - h)) / (2.0 * h);
+                let (_, slope) = pb.cost_slope(x);
+                assert!(
+                    (slope - numeric).abs() <= 1e-5 * numeric.abs().max(1e-3),
+                    "degree {degree}, psi {x}: {slope} against {numeric}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_refinement_stops_where_the_derivative_changes_sign() {
+        // The minimum found is certified to 1e-9 rad: the cost falls towards it from both sides, or it
+        // lies on a phase where a bin changes branch (there the cost may jump, and degree 1 does not fit
+        // this cycle's cubic border).
+        let (phase, w) = noisy_cycle();
+        for degree in [1, 3, 6] {
+            let pb = Problem::new(&phase, &w, vec![1.5; 300], vec![true; 300], degree + 1);
+            let (x, f) = pb.minimise(0.0, PI, TAU / 300.0 / 4.0, true);
+            assert!((x - 0.7).abs() < 0.05, "degree {degree}: {x}");
+            let (left, right) = (pb.cost_slope(x - 1e-9).1, pb.cost_slope(x + 1e-9).1);
+            let on_a_break = phase.iter().any(|r| {
+                let d = (r - x).rem_euclid(PI);
+                d.min(PI - d) < 1e-9
+            });
+            let near = phase
+                .iter()
+                .map(|r| {
+                    let d = (r - x).rem_euclid(PI);
+                    d.min(PI - d)
+                })
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                (left < 0.0 && right > 0.0) || on_a_break,
+                "degree {degree}: slopes {left}, {right} at {x}, {near:e} from a break"
+            );
+            assert_eq!(pb.cost(x), f);
         }
     }
 

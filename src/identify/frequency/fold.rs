@@ -61,13 +61,12 @@ fn sigma_from_differences(y: &[f64]) -> f64 {
     if y.len() < 3 {
         return 0.0;
     }
-    let mut d: Vec<f64> = y
+    let d: Vec<f64> = y
         .windows(3)
         .map(|v| (v[2] - 2.0 * v[1] + v[0]).abs())
         .collect();
-    let mid = d.len() / 2;
-    let (_, m, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
-    1.4826 * *m / 6f64.sqrt()
+    let m = crate::stats::median(&d).expect("at least one second difference");
+    1.4826 * m / 6f64.sqrt()
 }
 
 /// Fold the record: `rho[i] = omega t[i] - phi_u` is each sample's phase, `bins` the number of bins per

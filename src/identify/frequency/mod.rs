@@ -31,7 +31,8 @@
 //!    degree of freedom wins; if none beats the SLS, the SLS is kept with a warning.
 //! 5. The SLS phase search, eq. (25a): the cost is `pi`-periodic in `psi`; a grid over `[0, pi)` with a
 //!    spacing of a quarter of a bin (the scale on which the cost's pieces change, so no basin of the cost
-//!    can fall between grid points) and golden-section refinement of the three best local minima.
+//!    can fall between grid points) and refinement of the three best local minima where the cost's derivative
+//!    vanishes (variable projection, private module `fit`).
 //! 6. Recovery, eqs. (28), (35)-(37): `|G| = (sum_i |alpha_i|^(n/i))^(1/n) / U`,
 //!    `a_i = alpha_i / S^(i/n)`, `d_i = delta_i / S^(i/n)` with `S = sum_i |alpha_i|^(n/i)` for **both**
 //!    borders. Eq. (37) of the paper divides the `delta_i` by the sum over the `|delta_i|`; eqs. (33a)-(34a)
@@ -454,45 +455,66 @@ pub fn estimate(
 ) -> Result<FrequencyEstimate, FrequencyError> {
     check_inputs(rec, opts)?;
     let omega = opts.omega;
-    let n = opts.degree;
-    let p = n + 1;
-    let mut warnings = Vec::new();
-
+    let p = opts.degree + 1;
     // 1. Phase reference.
-    let (input_amplitude, input_phase) = match rec.u {
-        Some(u) => {
-            let fit = window::fit_sine(rec.time, u, omega, false);
-            let (amp, ph, res) = (fit.amplitude, fit.phase, fit.residual);
-            if !(amp.is_finite() && amp > 0.0) || res > 0.1 * amp {
-                return Err(FrequencyError::InputNotSine {
-                    omega,
-                    fitted: amp,
-                    residual: res,
-                });
-            }
-            if (amp - opts.amplitude).abs() > AMPLITUDE_TOLERANCE * opts.amplitude {
-                return Err(FrequencyError::AmplitudeMismatch {
-                    fitted: amp,
-                    declared: opts.amplitude,
-                });
-            }
-            (Some(amp), Some(ph))
-        }
-        None => (None, None),
-    };
+    let (input_amplitude, input_phase) = phase_reference(rec, opts)?;
     let phi_u = input_phase.unwrap_or(0.0);
     let rho: Vec<f64> = rec.time.iter().map(|&t| omega * t - phi_u).collect();
-
     // 2. Bins, transient, averaging (21).
-    let mut dts: Vec<f64> = rec.time.windows(2).map(|w| w[1] - w[0]).collect();
-    let bins = if dts.is_empty() {
-        0
-    } else {
-        let mid = dts.len() / 2;
-        let (_, dt, _) = dts.select_nth_unstable_by(mid, f64::total_cmp);
-        (TAU / (omega * *dt)).round() as usize
+    let bins = bins_per_period(rec.time, omega, opts.degree)?;
+    let folded = fold::fold(&rho, rec.y, bins, opts.transient.map(|s| s * omega))?;
+    let mut warnings = folded.warnings.clone();
+    // 3. Admissibility.
+    check_admissible(&folded, opts.amplitude)?;
+    // 4-5. SLS on the whole period, then constant-stage candidates if it does not fit.
+    let fitting = Fitting::new(&folded, p);
+    let (psi, runs, path) = fitting.choose(opts.degree, &mut warnings);
+    // 6. Final fit at psi in [0, pi), checks, recovery.
+    let psi = psi.rem_euclid(PI);
+    let mut est = fitting.finish(psi, &runs, opts)?;
+    let (tau_a, tau_d) = stage_lengths(&runs, &folded, psi, omega);
+    est.path = path;
+    est.tau_a = tau_a;
+    est.tau_d = tau_d;
+    est.input_amplitude = input_amplitude;
+    est.input_phase = input_phase;
+    est.warnings = warnings;
+    Ok(est)
+}
+
+/// Step 1: the input's amplitude and phase `U'`, `phi_u` (fitted as `U' cos(omega t - phi_u)`), or
+/// `None` without an input column; refused if the input is not that sine or `U'` is not the declared `U`.
+fn phase_reference(
+    rec: &SineRecord,
+    opts: &FrequencyOptions,
+) -> Result<(Option<f64>, Option<f64>), FrequencyError> {
+    let Some(u) = rec.u else {
+        return Ok((None, None));
     };
-    let needed = (4 * p).max(12);
+    let fit = window::fit_sine(rec.time, u, opts.omega, false);
+    let (amp, ph, res) = (fit.amplitude, fit.phase, fit.residual);
+    if !(amp.is_finite() && amp > 0.0) || res > 0.1 * amp {
+        return Err(FrequencyError::InputNotSine {
+            omega: opts.omega,
+            fitted: amp,
+            residual: res,
+        });
+    }
+    if (amp - opts.amplitude).abs() > AMPLITUDE_TOLERANCE * opts.amplitude {
+        return Err(FrequencyError::AmplitudeMismatch {
+            fitted: amp,
+            declared: opts.amplitude,
+        });
+    }
+    Ok((Some(amp), Some(ph)))
+}
+
+/// Step 2: phase bins per period, `2 pi / (omega Ts)` with `Ts` the median time step; refused below what
+/// degree `n` needs.
+fn bins_per_period(time: &[f64], omega: f64, n: usize) -> Result<usize, FrequencyError> {
+    let dts: Vec<f64> = time.windows(2).map(|w| w[1] - w[0]).collect();
+    let bins = crate::stats::median(&dts).map_or(0, |dt| (TAU / (omega * dt)).round() as usize);
+    let needed = (4 * (n + 1)).max(12);
     if bins < needed {
         return Err(FrequencyError::TooFewSamples {
             per_period: bins,
@@ -500,13 +522,12 @@ pub fn estimate(
             degree: n,
         });
     }
-    let folded = fold::fold(&rho, rec.y, bins, opts.transient.map(|s| s * omega))?;
-    warnings.extend(folded.warnings.iter().cloned());
-    let nb = folded.w.len();
-    let sig = |j: usize| folded.sigma_bin(j);
-    let sigma_eff = folded.sigma.max(folded.sigma_floor);
+    Ok(bins)
+}
 
-    // 3. Admissibility.
+/// Step 3, Proposition 1.3: refused when the averaged output does not vary beyond its noise.
+fn check_admissible(folded: &fold::Folded, amplitude: f64) -> Result<(), FrequencyError> {
+    let nb = folded.w.len();
     let total: f64 = folded.count.iter().sum();
     let mean = folded
         .w
@@ -516,47 +537,116 @@ pub fn estimate(
         .sum::<f64>()
         / total;
     let chi_const: f64 = (0..nb)
-        .map(|j| ((folded.w[j] - mean) / sig(j)).powi(2))
+        .map(|j| ((folded.w[j] - mean) / folded.sigma_bin(j)).powi(2))
         .sum();
     let dof_const = (nb - 1) as f64;
-    if chi_const <= dof_const + 5.0 * (2.0 * dof_const).sqrt() {
-        let (lo, hi) = folded
-            .w
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
-                (l.min(v), h.max(v))
-            });
-        return Err(FrequencyError::NonAdmissible {
-            amplitude: opts.amplitude,
-            variation: hi - lo,
-            noise: sigma_eff / (total / nb as f64).sqrt(),
+    if chi_const > dof_const + 5.0 * (2.0 * dof_const).sqrt() {
+        return Ok(());
+    }
+    let (lo, hi) = folded
+        .w
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+            (l.min(v), h.max(v))
         });
+    Err(FrequencyError::NonAdmissible {
+        amplitude,
+        variation: hi - lo,
+        noise: folded.sigma.max(folded.sigma_floor) / (total / nb as f64).sqrt(),
+    })
+}
+
+/// Stage lengths `(tau_a, tau_d)`: a run that holds the start of the ascending (descending) half.
+fn stage_lengths(runs: &[Run], folded: &fold::Folded, psi: f64, omega: f64) -> (f64, f64) {
+    let delta = folded.delta;
+    let (mut tau_a, mut tau_d) = (0.0, 0.0);
+    for r in runs {
+        let (first, last) = r.phases(&folded.phase);
+        for (start, tau) in [(psi, &mut tau_d), (psi + PI, &mut tau_a)] {
+            // Move the branch start next to the run.
+            let s = start + ((first - start) / TAU).round() * TAU;
+            if s >= first - 3.0 * delta && s <= last + delta {
+                *tau = ((last + 0.5 * delta - s) / omega).max(0.0);
+            }
+        }
+    }
+    (tau_a, tau_d)
+}
+
+/// Steps 4-6 on one averaged period: the cost (22) on optimisation sets, their scores, the choice of
+/// Table 1 and the final fit.
+struct Fitting<'a> {
+    folded: &'a fold::Folded,
+    /// Row weights: square roots of the bins' sample counts.
+    sw: Vec<f64>,
+    /// Parameters per branch, `n + 1`.
+    p: usize,
+    /// Noise std of one sample, with its floor.
+    sigma: f64,
+}
+
+impl<'a> Fitting<'a> {
+    fn new(folded: &'a fold::Folded, p: usize) -> Fitting<'a> {
+        Fitting {
+            folded,
+            sw: folded.count.iter().map(|c| c.sqrt()).collect(),
+            p,
+            sigma: folded.sigma.max(folded.sigma_floor),
+        }
     }
 
-    // 4-5. SLS on the whole period, then constant-stage candidates if it does not fit.
-    let sw: Vec<f64> = folded.count.iter().map(|c| c.sqrt()).collect();
-    let problem = |runs: &[Run]| Problem {
-        phase: &folded.phase,
-        w: &folded.w,
-        sw: sw.clone(),
-        include: (0..nb)
-            .map(|j| !runs.iter().any(|r| r.contains(j, nb)))
-            .collect(),
-        p,
-    };
-    let delta = folded.delta;
-    let score = |cost: f64, included: usize| -> (f64, f64) {
-        let dof = (included as f64 - 2.0 * p as f64 - 1.0).max(1.0);
-        (cost / (sigma_eff * sigma_eff), dof)
-    };
-    let all = problem(&[]);
-    let (psi_sls, j_sls) = all.minimise(0.0, PI, delta / 4.0, true);
-    let (chi_sls, dof_sls) = score(j_sls, nb);
-    let mut chosen: (f64, Vec<Run>, EstimatorPath) = (psi_sls, Vec::new(), EstimatorPath::Sls);
-    if chi_sls > dof_sls + 5.0 * (2.0 * dof_sls).sqrt() {
-        let tol: Vec<f64> = (0..nb).map(|j| 4.0 * sig(j)).collect();
-        let runs = flat_runs(&folded.w, &tol);
-        let top: Vec<Run> = runs.into_iter().take(4).collect();
+    /// The cost over the bins outside `runs`.
+    fn problem(&self, runs: &[Run]) -> Problem<'a> {
+        let nb = self.folded.w.len();
+        Problem::new(
+            &self.folded.phase,
+            &self.folded.w,
+            self.sw.clone(),
+            (0..nb)
+                .map(|j| !runs.iter().any(|r| r.contains(j, nb)))
+                .collect(),
+            self.p,
+        )
+    }
+
+    /// `(chi2, dof)` of a cost over `included` bins.
+    fn score(&self, cost: f64, included: usize) -> (f64, f64) {
+        let dof = (included as f64 - 2.0 * self.p as f64 - 1.0).max(1.0);
+        (cost / (self.sigma * self.sigma), dof)
+    }
+
+    /// Table 1 and eq. (26): `(psi, stage runs, path)`; the SLS (with a warning) when it does not fit and
+    /// no constant-stage candidate beats it.
+    fn choose(&self, n: usize, warnings: &mut Vec<String>) -> (f64, Vec<Run>, EstimatorPath) {
+        let delta = self.folded.delta;
+        let (psi_sls, j_sls) = self.problem(&[]).minimise(0.0, PI, delta / 4.0, true);
+        let (chi_sls, dof_sls) = self.score(j_sls, self.folded.w.len());
+        if chi_sls <= dof_sls + 5.0 * (2.0 * dof_sls).sqrt() {
+            return (psi_sls, Vec::new(), EstimatorPath::Sls);
+        }
+        match self.best_candidate() {
+            Some((per_dof, psi, runs)) if per_dof < chi_sls / dof_sls => {
+                (psi, runs, EstimatorPath::Ls)
+            }
+            _ => {
+                warnings.push(format!(
+                    "the averaged output is not explained by degree-{n} borders within the noise \
+                     (chi-square per degree of freedom {:.3e}) and no constant stage improves the fit: \
+                     check the degree, the steady state and the frequency",
+                    chi_sls / dof_sls
+                ));
+                (psi_sls, Vec::new(), EstimatorPath::Sls)
+            }
+        }
+    }
+
+    /// The constant-stage candidates (module documentation, step 4): the four longest flat runs alone and
+    /// the pairs of them whose brackets meet modulo `pi`.
+    fn candidates(&self) -> Vec<Candidate> {
+        let (folded, delta) = (self.folded, self.folded.delta);
+        let nb = folded.w.len();
+        let tol: Vec<f64> = (0..nb).map(|j| 4.0 * folded.sigma_bin(j)).collect();
+        let top: Vec<Run> = flat_runs(&folded.w, &tol).into_iter().take(4).collect();
         let bracket = |r: &Run| {
             let (first, last) = r.phases(&folded.phase);
             (first - 3.0 * delta, last + delta)
@@ -591,96 +681,82 @@ pub fn estimate(
                 }
             }
         }
+        cands
+    }
+
+    /// The candidate of smallest chi-square per degree of freedom: `(chi2 / dof, psi, runs)`.
+    fn best_candidate(&self) -> Option<(f64, f64, Vec<Run>)> {
         let mut best: Option<(f64, f64, Vec<Run>)> = None;
-        for c in cands {
-            let pb = problem(&c.runs);
+        for c in self.candidates() {
+            let pb = self.problem(&c.runs);
             // Inside the bracket the stage bins are out of I_N and the cost is smooth: half-bin grid.
-            let (psi, j) = pb.minimise(c.lo, c.hi, delta / 2.0, false);
-            let (chi, dof) = score(j, pb.included());
+            let (psi, j) = pb.minimise(c.lo, c.hi, self.folded.delta / 2.0, false);
+            let (chi, dof) = self.score(j, pb.included());
             let per_dof = chi / dof;
             if best.as_ref().is_none_or(|b| per_dof < b.0) {
                 best = Some((per_dof, psi, c.runs));
             }
         }
-        match best {
-            Some((per_dof, psi, runs)) if per_dof < chi_sls / dof_sls => {
-                chosen = (psi, runs, EstimatorPath::Ls);
-            }
-            _ => warnings.push(format!(
-                "the averaged output is not explained by degree-{n} borders within the noise \
-                 (chi-square per degree of freedom {:.3e}) and no constant stage improves the fit: \
-                 check the degree, the steady state and the frequency",
-                chi_sls / dof_sls
-            )),
-        }
+        best
     }
 
-    // 6. Final fit at psi in [0, pi), checks, recovery.
-    let (psi, runs, path) = chosen;
-    let psi = psi.rem_euclid(PI);
-    let pb = problem(&runs);
-    let fit = pb.fit(psi);
-    for (branch, b) in [
-        ("ascending", &fit.ascending),
-        ("descending", &fit.descending),
-    ] {
-        if b.rank < p {
-            return Err(FrequencyError::TooFewBranchSamples {
-                branch,
-                found: b.rows,
-                needed: p,
-                degree: n,
-            });
-        }
-    }
-    let alpha = fit.ascending.theta.clone();
-    let delta_l = fit.descending.theta.clone();
-    let (gain, fa, fd) = recover(&alpha, &delta_l, opts.amplitude)?;
-    let included_samples: f64 = (0..nb)
-        .filter(|&j| pb.include[j])
-        .map(|j| folded.count[j])
-        .sum();
-    let residual_rms = (fit.cost() / included_samples).sqrt();
-    let (chi2, dof) = score(fit.cost(), pb.included());
-
-    // Stage lengths: a run that holds the start of the descending (ascending) half.
-    let mut tau_a = 0.0;
-    let mut tau_d = 0.0;
-    for r in &runs {
-        let (first, last) = r.phases(&folded.phase);
-        for (start, tau) in [(psi, &mut tau_d), (psi + PI, &mut tau_a)] {
-            // Move the branch start next to the run.
-            let s = start + ((first - start) / TAU).round() * TAU;
-            if s >= first - 3.0 * delta && s <= last + delta {
-                *tau = ((last + 0.5 * delta - s) / omega).max(0.0);
+    /// Step 6: the fit at `psi` without the bins of `runs`, its checks and the recovery (28), (35)-(37).
+    /// The path, stage lengths, input fit and warnings are left for the caller.
+    fn finish(
+        &self,
+        psi: f64,
+        runs: &[Run],
+        opts: &FrequencyOptions,
+    ) -> Result<FrequencyEstimate, FrequencyError> {
+        let (p, n, folded) = (self.p, opts.degree, self.folded);
+        let pb = self.problem(runs);
+        let fit = pb.fit(psi);
+        for (branch, b) in [
+            ("ascending", &fit.ascending),
+            ("descending", &fit.descending),
+        ] {
+            if b.rank < p {
+                return Err(FrequencyError::TooFewBranchSamples {
+                    branch,
+                    found: b.rows,
+                    needed: p,
+                    degree: n,
+                });
             }
         }
+        let alpha = fit.ascending.theta.clone();
+        let delta = fit.descending.theta.clone();
+        let (gain, fa, fd) = recover(&alpha, &delta, opts.amplitude)?;
+        let included_samples: f64 = (0..folded.w.len())
+            .filter(|&j| pb.include[j])
+            .map(|j| folded.count[j])
+            .sum();
+        let (chi2, dof) = self.score(fit.cost(), pb.included());
+        Ok(FrequencyEstimate {
+            omega: opts.omega,
+            amplitude: opts.amplitude,
+            degree: n,
+            phase: psi,
+            gain,
+            fa,
+            fd,
+            path: EstimatorPath::Sls,
+            alpha,
+            delta,
+            tau_a: 0.0,
+            tau_d: 0.0,
+            periods_used: folded.periods_used,
+            transient_periods: folded.transient_periods,
+            samples_per_period: folded.bins,
+            residual_rms: (fit.cost() / included_samples).sqrt(),
+            noise_std: folded.sigma,
+            chi2,
+            dof,
+            samples_averaged: included_samples,
+            parameters: 2 * p + 1 + runs.len(),
+            input_amplitude: None,
+            input_phase: None,
+            warnings: Vec::new(),
+        })
     }
-
-    Ok(FrequencyEstimate {
-        omega,
-        amplitude: opts.amplitude,
-        degree: n,
-        phase: psi,
-        gain,
-        fa,
-        fd,
-        path,
-        alpha,
-        delta: delta_l,
-        tau_a,
-        tau_d,
-        periods_used: folded.periods_used,
-        transient_periods: folded.transient_periods,
-        samples_per_period: folded.bins,
-        residual_rms,
-        noise_std: folded.sigma,
-        chi2,
-        dof,
-        samples_averaged: included_samples,
-        parameters: 2 * p + 1 + runs.len(),
-        input_amplitude,
-        input_phase,
-        warnings,
-    })
 }

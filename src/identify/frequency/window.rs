@@ -196,12 +196,6 @@ fn agree(a: f64, b: f64, tol: f64) -> bool {
     (a - b).abs() <= tol * a.abs().max(b.abs())
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    let mid = v.len() / 2;
-    let (_, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
-    *m
-}
-
 /// The steps of a record: maximal runs of cycles of one frequency and amplitude (module documentation),
 /// as `(first cycle, last cycle)` index pairs into `cycles`, inclusive.
 pub fn steps(cycles: &[Cycle]) -> Vec<(usize, usize)> {
@@ -231,6 +225,7 @@ pub fn steps(cycles: &[Cycle]) -> Vec<(usize, usize)> {
 /// Trim a run's ends to the cycles that agree with its median period and amplitude.
 fn trim(cycles: &[Cycle], mut a: usize, mut b: usize) -> Option<(usize, usize)> {
     let run = &cycles[a..=b];
+    let median = |v: Vec<f64>| crate::stats::median(&v).expect("a run holds a cycle");
     let period = median(run.iter().map(Cycle::period).collect());
     let amplitude = median(run.iter().map(|c| c.amplitude).collect());
     let fits = |c: &Cycle| {
