@@ -172,10 +172,16 @@ pub fn choose(u: &[f64], y: &[f64], n_fit: usize) -> Rate {
             factors.push(d);
         }
     }
-    let probe_says = format!(
+    let mut probe_says = format!(
         "the slowest pole of a two-pole linear output-error probe, radius {r:.4}, gives a time constant of \
          {tau:.1} samples"
     );
+    if theta > 0.0 {
+        probe_says += &format!(
+            " and oscillates with a period of {:.1} samples",
+            std::f64::consts::TAU / theta
+        );
+    }
     if factors.len() == 1 {
         return Rate {
             decimate: rule,
@@ -204,8 +210,9 @@ fn rule_reason(factor: usize, probe_says: &str) -> String {
         )
     } else {
         format!(
-            "every sample: {probe_says} (decimation needs at least {} samples per time constant)",
-            COARSER_PER_TAU[COARSER_PER_TAU.len() - 1] * MIN_FACTOR as f64
+            "every sample: {probe_says}; no factor of at least {MIN_FACTOR} keeps {} samples per time \
+             constant, 8 per period of an oscillation and {MIN_SAMPLES} samples",
+            COARSER_PER_TAU[COARSER_PER_TAU.len() - 1]
         )
     }
 }
