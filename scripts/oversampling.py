@@ -6,7 +6,9 @@ The plant is the test bench's with the continuous linear block G(s) = 1 / (s^2 +
 `linear = 1`; paper 003's example) and the default backlash (m1 = 1, m2 = 1.5, c1 = 0.5, c2 = 1). Its own
 rate is one sample per second (about six per period of G's resonance); the input is a uniform level in
 [-2.4, 2.4] held for one second. Each record samples the same experiment F times faster (Ts = 1/F s,
-T seconds long, sensor noise of std NOISE at every sample) and is diagnosed with no options.
+T seconds long, sensor noise of std NOISE at every sample) and is diagnosed with no options. "rates compared"
+lists the factors the rate choice judged on the fit part (`rate.candidates`: each factor's validation free-run
+RMSE at the record's samples; "-" when only the time-constant rule's factor was possible).
 
 The true model's error is judged like diagnose's own: the noise-free backlash output w of the record is block-
 averaged by the factor diagnose chose, and its RMSE against the block-averaged measured output is taken on
@@ -58,7 +60,9 @@ def one(binary: str, factor: int, seed: int, seconds: int, folder: pathlib.Path)
     true = float(np.sqrt(np.mean((y[n_fit:] - w[n_fit:]) ** 2)))
     after = doc["after"]["rmse"]
     effects = "+".join(e["id"] for e in doc["effects"]) or "none"
-    return (f"| {factor} | {len(u)} | {d} ({doc['rate']['chosen_by']}) | {doc['na']}, {doc['nb']}, "
+    compared = ", ".join(f"{c['decimate']}: {c['validation_rmse']:.4g}" if c["validation_rmse"] is not None
+                         else f"{c['decimate']}: -" for c in doc["rate"].get("candidates", [])) or "-"
+    return (f"| {factor} | {len(u)} | {d} ({doc['rate']['chosen_by']}) | {compared} | {doc['na']}, {doc['nb']}, "
             f"{doc['delay']} | {doc['linear']['rmse']:.4g} | {doc['before']['rmse']:.4g} | {after:.4g} | "
             f"{true:.4g} | {after / true:.3f} | {effects} | {secs:.1f} |")
 
@@ -70,9 +74,9 @@ def main() -> None:
     p.add_argument("--seconds", type=int, default=2000, help="length of the experiment in seconds")
     p.add_argument("--binary", default=str(ROOT / "target" / "release" / "backlash"))
     a = p.parse_args()
-    print("| F (samples per second) | N | rate: decimate (chosen by) | na, nb, delay | linear | before | after "
-          "| true model | after / true | effects | time [s] |")
-    print("|" + " --- |" * 11)
+    print("| F (samples per second) | N | rate: decimate (chosen by) | rates compared (factor: RMSE) | na, nb, delay "
+          "| linear | before | after | true model | after / true | effects | time [s] |")
+    print("|" + " --- |" * 12)
     with tempfile.TemporaryDirectory() as tmp:
         for f in a.factors:
             print(one(a.binary, f, a.seed, a.seconds, pathlib.Path(tmp)), flush=True)

@@ -201,3 +201,30 @@ fn the_diagnosis_does_not_depend_on_the_records_units() {
         );
     }
 }
+
+/// The rate chosen from the data (issue 31): the DC motor/generator record as its file gives it (time
+/// constant about 27 samples, below the time-constant rule's 50) is decimated after comparing factors on
+/// its fit part (every sample was 2x worse than NARX there); `--decimate 1` still wins.
+#[test]
+fn the_dc_generator_at_its_files_rate_is_decimated_after_comparing_rates() {
+    use backlash::api::{RecordOptions, choose_rate};
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("data/dc_generator/dc_generator.csv");
+    let rec = RecordOptions::default()
+        .read(&path, true)
+        .expect("the record reads");
+    let rate = choose_rate(&rec.u, &rec.y, None, 0.7).expect("a rate");
+    assert_eq!(rate.chosen_by, "data");
+    assert!(rate.decimate >= 2, "{rate:?}");
+    assert!(rate.candidates.len() >= 2, "{rate:?}");
+    let error_at = |d: usize| {
+        rate.candidates
+            .iter()
+            .find(|c| c.decimate == d)
+            .and_then(|c| c.validation_rmse)
+            .unwrap()
+    };
+    assert!(error_at(rate.decimate) < error_at(1), "{rate:?}");
+    let user = choose_rate(&rec.u, &rec.y, Some(1), 0.7).expect("a rate");
+    assert_eq!((user.decimate, user.chosen_by), (1, "user"));
+}

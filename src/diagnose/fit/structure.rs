@@ -327,16 +327,12 @@ fn stage2(
     lin: &BaseModel,
     (n_est, n_w): (usize, usize),
 ) -> (Option<f64>, Option<bool>) {
-    let est = p.shortened(n_est);
     let s = Structure {
         na: lin.na,
         nb: lin.nb,
         delay: lin.delay,
     };
-    let fitted = est
-        .cost(&EffectModel::plain(lin.clone()), Objective::Simulation)
-        .and_then(|c| fit_plain(&est, s, 0, 0, &(lin.clone(), c)));
-    let Some((m, _)) = fitted else {
+    let Some(m) = stage2_model(p, lin, n_est) else {
         return (None, None);
     };
     let rmse = m
@@ -356,12 +352,62 @@ fn stage2(
     (rmse, Some(excited))
 }
 
+/// The backlash model of stage 2 fitted on the estimation part (samples `0..n_est`) from the stage-1 linear
+/// model `lin`.
+fn stage2_model(p: &Problem, lin: &BaseModel, n_est: usize) -> Option<EffectModel> {
+    let est = p.shortened(n_est);
+    let s = Structure {
+        na: lin.na,
+        nb: lin.nb,
+        delay: lin.delay,
+    };
+    est.cost(&EffectModel::plain(lin.clone()), Objective::Simulation)
+        .and_then(|c| fit_plain(&est, s, 0, 0, &(lin.clone(), c)))
+        .map(|(m, _)| m)
+}
+
+/// The backlash models a rate is judged by ([`crate::diagnose::fit::rate`]): on the fit part of `p` (its
+/// first two thirds estimate, as in [`select`]), stage 1 over the structures with delays up to `max_delay`,
+/// then the backlash model of the best linear structure and of the smallest one within [`LINEAR_BAND`] of
+/// it. Each comes with the number of samples it was estimated on.
+pub(crate) fn rate_models(p: &Problem, max_delay: usize) -> (usize, Vec<EffectModel>) {
+    let n_w = p.n_fit;
+    let n_est = estimation_len(n_w);
+    let structures = grid(max_delay, n_w, n_w);
+    let ranked = stage1(p, &structures, (n_est, n_w));
+    let candidates: Vec<StructureCandidate> = ranked.iter().map(|(c, _)| c.clone()).collect();
+    // The best linear structure and the smallest near it.
+    let mut chosen = vec![0];
+    if let Some(&i) = band(&candidates).first().filter(|&&i| i != 0) {
+        chosen.push(i);
+    }
+    let models = chosen
+        .par_iter()
+        .filter_map(|&i| stage2_model(p, ranked[i].1.as_ref()?, n_est))
+        .collect();
+    (n_est, models)
+}
+
 /// The stage-1 candidates (ranked by their linear error) that stage 2 fits fully: the [`STAGE2`] best, the
 /// [`STAGE2_SMALL`] smallest among those within [`LINEAR_BAND`] of the best linear error (a backlash or
 /// another nonlinearity the linear model lacks leaves every linear structure with nearly the same error,
 /// and the order among them is then no guide), and the best static one.
 fn stage2_picks(ranked: &[StructureCandidate]) -> Vec<usize> {
     let mut picked: Vec<usize> = (0..ranked.len().min(STAGE2)).collect();
+    let stat = ranked
+        .iter()
+        .position(|c| c.structure.na == 0 && c.structure.nb == 0);
+    for i in band(ranked).into_iter().take(STAGE2_SMALL).chain(stat) {
+        if !picked.contains(&i) {
+            picked.push(i);
+        }
+    }
+    picked
+}
+
+/// The stage-1 candidates (ranked by their linear error) within [`LINEAR_BAND`] of the best linear error,
+/// smallest first (fewest parameters, then the shortest delay, then the fewest a's).
+fn band(ranked: &[StructureCandidate]) -> Vec<usize> {
     let best = ranked
         .first()
         .and_then(|c| c.linear_rmse)
@@ -377,15 +423,7 @@ fn stage2_picks(ranked: &[StructureCandidate]) -> Vec<usize> {
         let s = ranked[i].structure;
         (s.n_params(), s.delay, s.na)
     });
-    let stat = ranked
-        .iter()
-        .position(|c| c.structure.na == 0 && c.structure.nb == 0);
-    for i in band.into_iter().take(STAGE2_SMALL).chain(stat) {
-        if !picked.contains(&i) {
-            picked.push(i);
-        }
-    }
-    picked
+    band
 }
 
 /// Choose the structure on the fit part of `p` (see the module's documentation). `n_total` is the record's
