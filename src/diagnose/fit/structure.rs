@@ -327,11 +327,6 @@ fn stage2(
     lin: &BaseModel,
     (n_est, n_w): (usize, usize),
 ) -> (Option<f64>, Option<bool>) {
-    let s = Structure {
-        na: lin.na,
-        nb: lin.nb,
-        delay: lin.delay,
-    };
     let Some(m) = stage2_model(p, lin, n_est) else {
         return (None, None);
     };
@@ -348,7 +343,7 @@ fn stage2(
         c1: b.c1,
         c2: b.c2,
     };
-    let excited = check_excited(&estimate, s.delay, &p.u[..n_est], &p.y[..n_est]).is_ok();
+    let excited = check_excited(&estimate, lin.delay, &p.u[..n_est], &p.y[..n_est]).is_ok();
     (rmse, Some(excited))
 }
 
