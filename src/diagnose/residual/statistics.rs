@@ -102,6 +102,9 @@ pub const INPUT_LINE_RATIO: f64 = 20.0;
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::diagnose::effects::rig::Draw;
+    use rand_chacha::ChaCha8Rng;
+    use rand_core::SeedableRng;
 
     // Reference numbers computed independently in Python (NumPy, statsmodels 0.14 `AutoReg(trend="n")`,
     // scipy) from the same series; see each test.
@@ -175,16 +178,9 @@ mod tests {
         let w = 2.0 * std::f64::consts::PI / 50.0;
         let periodic: Vec<f64> = (0..n).map(|k| (w * k as f64).sin()).collect();
         assert!(input_line_ratio(&periodic, w) > 1000.0);
-        // Pseudo-random input (a fixed LCG): no line anywhere.
-        let mut s: u64 = 12345;
-        let noise: Vec<f64> = (0..n)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-            })
-            .collect();
+        // Pseudo-random input: no line anywhere.
+        let mut draw = Draw(ChaCha8Rng::seed_from_u64(12345));
+        let noise: Vec<f64> = (0..n).map(|_| draw.uniform(-0.5, 0.5)).collect();
         assert!(input_line_ratio(&noise, w) < INPUT_LINE_RATIO);
         // Far from the input's line the ratio is small: only ordinates within one Fourier spacing count.
         assert!(input_line_ratio(&periodic, 2.0) < 1.0);
