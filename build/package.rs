@@ -1,8 +1,9 @@
-//! Packages the FMUs: builds this crate's cdylib with a nested cargo and zips it with its description.
+//! Packages the FMUs (packaging/build.rs): builds the library's cdylib with a nested cargo and zips it with
+//! its description.
 //!
-//! A build script runs before its own crate is compiled, so it cannot see the crate's final shared library.
-//! The way around (as substrate-wasm-builder does) is a nested `cargo build --profile fmu --lib
-//! --no-default-features` of this same package (the FMUs alone: plant, estimators, FMI layers; no plots, FFT or
+//! A build script runs before its crate is compiled, so no build script sees the library's final shared
+//! library. The way around (as substrate-wasm-builder does) is a nested `cargo build --profile fmu --lib
+//! --no-default-features` of the library (the FMUs alone: plant, estimators, FMI layers; no plots, FFT or
 //! thread pool) into a separate target directory, guarded by the environment variable `BACKLASH_FMU_NESTED`
 //! against recursion. It builds for this build's target only; scripts/dist.sh builds the same library for the
 //! other platforms and merges them into the same FMUs. One shared library serves both FMUs in both FMI versions: it exports the fmi2* and the
@@ -14,15 +15,12 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// The directory cargo builds into (`target/`), found from OUT_DIR (`target/<profile>/build/<pkg>/out`, or
-/// `target/<triple>/<profile>/build/<pkg>/out` when cross-compiling).
-pub fn target_dir(out_dir: &Path) -> PathBuf {
+/// `target/<triple>/<profile>/build/<pkg>/out` when cross-compiling); a relative `CARGO_TARGET_DIR` is taken
+/// from the workspace's `root`.
+pub fn target_dir(out_dir: &Path, root: &Path) -> PathBuf {
     if let Ok(t) = std::env::var("CARGO_TARGET_DIR") {
         let p = PathBuf::from(t);
-        return if p.is_absolute() {
-            p
-        } else {
-            PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap()).join(p)
-        };
+        return if p.is_absolute() { p } else { root.join(p) };
     }
     let build = out_dir
         .ancestors()
@@ -119,6 +117,8 @@ fn nested(
     cmd.arg(sub)
         .arg("--profile")
         .arg("fmu")
+        .arg("--package")
+        .arg("backlash-fmu")
         .arg("--lib")
         // The FMUs alone: without the feature `cli` (plots, fonts, FFT, thread pool; see Cargo.toml).
         .arg("--no-default-features")

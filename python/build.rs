@@ -1,4 +1,4 @@
-//! Copies the FMUs that this same cargo build packaged (the dependency `backlash-fmu` passes their folder as
+//! Copies the FMUs that this same cargo build packaged (the dependency `backlash-fmu-packaging` passes their folder as
 //! DEP_BACKLASH_FMU_FMU_DIR) into the Python package, `backlash_fmu/fmu` (FMI 2.0) and `backlash_fmu/fmu3`
 //! (FMI 3.0, when that build made them), where maturin picks them up as package data. Builds that package no
 //! FMUs (debug builds; `BACKLASH_FMU=never`, with a warning) leave the package's folders as they are.

