@@ -88,7 +88,7 @@ step "fmu-manipulation-toolbox: fmutool -check" fmutool_check
 
 # --------------------------------------------------------------------------------------------- 3. long fuzz
 step "long fuzz run" bash -c 'set -o pipefail; FMI_FUZZ_CALLS=${FMI_FUZZ_CALLS:-1000000} cargo test --release \
-    --test fmi_fuzz -- --exact random_call_sequences_over_both_fmus --nocapture 2>&1 |
+    --test integration -- --exact fmi_fuzz::random_call_sequences_over_both_fmus --nocapture 2>&1 |
     grep -E "^(fuzz:|known FMI|panics caught|test result|fuzz invariant)"; exit ${PIPESTATUS[0]}'
 
 # ------------------------------------------------------------------------------------------ 4. large file

@@ -60,26 +60,23 @@ run() { # name, then the command
     echo "   ($((SECONDS - t0)) s)"
 }
 
-threads_bin=$(test_binary fmi_threads)
-[ -x "$threads_bin" ] || { echo "leak_check: cannot find the fmi_threads test binary" >&2; exit 1; }
+bin=$(test_binary integration)
+[ -x "$bin" ] || { echo "leak_check: cannot find the integration test binary" >&2; exit 1; }
 echo "leak_cycles: $cycles cycles per FMU"
 run leak_cycles \
-    "$threads_bin" --ignored --exact leak_cycles --test-threads=1
+    "$bin" --ignored --exact fmi_threads::leak_cycles --test-threads=1
 
 if [ "$fuzz_calls" != 0 ]; then
-    fuzz_bin=$(test_binary fmi_fuzz)
-    [ -x "$fuzz_bin" ] || { echo "leak_check: cannot find the fmi_fuzz test binary" >&2; exit 1; }
     echo "fuzz: $fuzz_calls calls per FMU"
     run fuzz \
-        "$fuzz_bin" --exact random_call_sequences_over_both_fmus --test-threads=1
+        "$bin" --exact fmi_fuzz::random_call_sequences_over_both_fmus --test-threads=1
 fi
 
 if [ "$fmi3_calls" != 0 ]; then
-    fmi3_bin=$(test_binary fmi3_exports)
-    [ -x "$fmi3_bin" ] || { echo "leak_check: cannot find the fmi3_exports test binary" >&2; exit 1; }
     echo "FMI 3.0: state table, and $fmi3_calls random calls per FMU"
     run fmi3 \
-        "$fmi3_bin" --exact every_call_in_every_state_follows_the_table random_call_sequences_over_both_fmus \
+        "$bin" --exact fmi3_exports::every_call_in_every_state_follows_the_table \
+        fmi3_exports::random_call_sequences_over_both_fmus \
         --test-threads=1
 fi
 

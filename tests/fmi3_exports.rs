@@ -21,7 +21,7 @@
               what each call passes and why is the test itself"
 )]
 
-mod common;
+use crate::common;
 
 use backlash::fmi::instance::Instance;
 use backlash::fmi::state::{Api, State};

@@ -45,7 +45,7 @@
 )]
 #![cfg(all(target_arch = "x86_64", target_os = "linux"))]
 
-mod common;
+use crate::common;
 
 use backlash::fmi::fmu_state::SavedState;
 use backlash::fmi::instance::Instance;

@@ -42,7 +42,7 @@
 )]
 #![cfg(all(target_arch = "x86_64", target_os = "linux"))]
 
-mod common;
+use crate::common;
 
 use backlash::fmi::instance::Instance;
 use backlash::fmi::state::State;

@@ -19,7 +19,7 @@
 )]
 #![cfg(all(target_arch = "x86_64", target_os = "linux"))]
 
-mod common;
+use crate::common;
 
 use backlash::fmi2::exports::*;
 use backlash::fmi2::ffi::*;
