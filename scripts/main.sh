@@ -4,7 +4,7 @@
 # crate; the Python package's extension is compiled on top of it (no wheel: that is CI's job).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+bash scripts/setup.sh --main
 cargo build --release
 bash scripts/install_package.sh
 .venv/bin/python scripts/paper_cosim.py "$@"
