@@ -88,102 +88,104 @@ impl Bench {
     /// plain comparisons suffice; what the XML cannot say (sat_lo <= sat_hi) is checked here, with the FMU's
     /// names.
     fn effects(&self, ts: f64) -> Result<Effects, String> {
-        let bad = |name: &str, v: f64, why: &str| {
-            Err(format!("parameter {name} = {v} is invalid: {why}"))
-        };
-        let mut e = Effects::default();
-        match self.direction_dependent {
-            0 => {}
-            1 => {
-                e.direction_dependent = Some(DirectionDependent {
-                    a: self.fall_a,
-                    b: self.fall_b,
-                })
-            }
-            v => {
-                return bad("direction_dependent", v as f64, "must be 0 (off) or 1 (on)");
-            }
-        }
-        if self.c_rate != [0.0; 2] {
-            e.gap_drift = Some(GapDrift {
+        let e = Effects {
+            direction_dependent: self.direction_dependent_effect()?,
+            gap_drift: (self.c_rate != [0.0; 2]).then(|| GapDrift {
                 c1_rate: self.c_rate[0] * ts,
                 c2_rate: self.c_rate[1] * ts,
-            });
-        }
-        if self.curve != [0.0; 4] {
-            e.curved_borders = Some(CurvedBorders {
+            }),
+            curved_borders: (self.curve != [0.0; 4]).then(|| CurvedBorders {
                 upper: [self.curve[0], self.curve[1]],
                 lower: [self.curve[2], self.curve[3]],
-            });
-        }
-        let form = match self.friction {
-            0 => None,
-            1 => Some(FrictionForm::Series),
-            2 => Some(FrictionForm::Contact),
-            v => {
-                return bad(
-                    "friction",
-                    v as f64,
-                    "must be 0 (off), 1 (series) or 2 (contact)",
-                );
-            }
-        };
-        if let Some(form) = form {
-            e.friction = Some(Friction {
-                k_e: self.k_e,
-                f_plus: self.f_plus,
-                f_minus: self.f_minus,
-                form,
-            });
-        }
-        if self.dist[0] != 0.0 {
-            e.periodic = Some(Periodic {
+            }),
+            friction: self.friction_effect()?,
+            periodic: (self.dist[0] != 0.0).then(|| Periodic {
                 amplitude: self.dist[0],
                 omega: self.dist[1] * ts,
                 phase: self.dist[2],
-            });
-        }
-        if self.noise_phi != 0.0 {
-            e.coloured_noise = Some(ColouredNoise {
+            }),
+            coloured_noise: (self.noise_phi != 0.0).then_some(ColouredNoise {
                 phi: self.noise_phi,
-            });
-        }
-        let before_noise = match self.saturation {
-            0 => None,
-            1 => Some(false),
-            2 => Some(true),
-            v => {
-                return bad(
-                    "saturation",
-                    v as f64,
-                    "must be 0 (off), 1 (sensor range) or 2 (end stop)",
-                );
-            }
-        };
-        if let Some(before_noise) = before_noise {
-            if self.sat[0] > self.sat[1] {
-                return bad("sat_lo", self.sat[0], "must not exceed sat_hi");
-            }
-            e.saturation = Some(Saturation {
-                lo: self.sat[0],
-                hi: self.sat[1],
-                before_noise,
-            });
-        }
-        if self.dead_zone != 0.0 {
-            e.dead_zone = Some(DeadZone {
+            }),
+            saturation: self.saturation_effect()?,
+            dead_zone: (self.dead_zone != 0.0).then_some(DeadZone {
                 width: self.dead_zone,
-            });
-        }
-        if self.quant[0] != 0.0 {
-            e.quantization = Some(Quantization {
+            }),
+            quantization: (self.quant[0] != 0.0).then(|| Quantization {
                 step: self.quant[0],
                 offset: self.quant[1],
-            });
-        }
+            }),
+        };
         e.validate().map_err(|err| err.to_string())?;
         Ok(e)
     }
+
+    /// The switch `direction_dependent` (0 off, 1 on with the falling block `fall_a`, `fall_b`).
+    fn direction_dependent_effect(&self) -> Result<Option<DirectionDependent>, String> {
+        match self.direction_dependent {
+            0 => Ok(None),
+            1 => Ok(Some(DirectionDependent {
+                a: self.fall_a,
+                b: self.fall_b,
+            })),
+            v => Err(invalid(
+                "direction_dependent",
+                v as f64,
+                "must be 0 (off) or 1 (on)",
+            )),
+        }
+    }
+
+    /// The switch `friction` (0 off, 1 series, 2 contact) with its parameters.
+    fn friction_effect(&self) -> Result<Option<Friction>, String> {
+        let form = match self.friction {
+            0 => return Ok(None),
+            1 => FrictionForm::Series,
+            2 => FrictionForm::Contact,
+            v => {
+                return Err(invalid(
+                    "friction",
+                    v as f64,
+                    "must be 0 (off), 1 (series) or 2 (contact)",
+                ));
+            }
+        };
+        Ok(Some(Friction {
+            k_e: self.k_e,
+            f_plus: self.f_plus,
+            f_minus: self.f_minus,
+            form,
+        }))
+    }
+
+    /// The switch `saturation` (0 off, 1 sensor range, 2 end stop) with its limits `sat_lo <= sat_hi`.
+    fn saturation_effect(&self) -> Result<Option<Saturation>, String> {
+        let before_noise = match self.saturation {
+            0 => return Ok(None),
+            1 => false,
+            2 => true,
+            v => {
+                return Err(invalid(
+                    "saturation",
+                    v as f64,
+                    "must be 0 (off), 1 (sensor range) or 2 (end stop)",
+                ));
+            }
+        };
+        if self.sat[0] > self.sat[1] {
+            return Err(invalid("sat_lo", self.sat[0], "must not exceed sat_hi"));
+        }
+        Ok(Some(Saturation {
+            lo: self.sat[0],
+            hi: self.sat[1],
+            before_noise,
+        }))
+    }
+}
+
+/// The message for a parameter the XML's bounds let through but the plant refuses.
+fn invalid(name: &str, v: f64, why: &str) -> String {
+    format!("parameter {name} = {v} is invalid: {why}")
 }
 
 impl PlantFmu {

@@ -844,34 +844,69 @@ fn gn_decrement(ne: &Normal, p: usize) -> Option<f64> {
     d.is_finite().then_some(d)
 }
 
+/// The Gauss-Newton step H^-1 g is shorter than STEP_SE standard errors in the metric of the estimate's
+/// covariance s^2 H^-1 (g^T H^-1 g <= STEP_SE^2 s^2), `n` samples: a statistical convergence test.
+fn step_is_insignificant(ne: &Normal, p: usize, n: usize) -> bool {
+    gn_decrement(ne, p).is_some_and(|dec| {
+        let s2 = ne.cost / (n - p) as f64;
+        dec <= STEP_SE * STEP_SE * s2
+    })
+}
+
+/// Predicted decrease of the linearised cost for the step `delta` at damping `lambda`:
+/// delta^T g + lambda delta^T D delta (> 0).
+fn predicted_decrease(ne: &Normal, delta: &DVector<f64>, p: usize, lambda: f64) -> f64 {
+    let dmax = (0..p).map(|i| ne.h[i][i]).fold(0.0, f64::max);
+    (0..p)
+        .map(|i| {
+            let dii = ne.h[i][i].max(1e-12 * dmax);
+            delta[i] * ne.g[i] + lambda * dii * delta[i] * delta[i]
+        })
+        .sum()
+}
+
+/// The Levenberg-Marquardt damping (Nielsen's update).
+struct Damping {
+    lambda: f64,
+    nu: f64,
+}
+
+impl Damping {
+    /// After a rejected step: more damping; `false` once it exceeds LAMBDA_MAX (no step can decrease the
+    /// cost any more).
+    fn reject(&mut self) -> bool {
+        self.lambda *= self.nu;
+        self.nu *= 2.0;
+        self.lambda <= LAMBDA_MAX
+    }
+
+    /// After an accepted step with gain ratio `rho` (actual over predicted decrease).
+    fn accept(&mut self, rho: f64) {
+        self.lambda =
+            (self.lambda * (1.0 / 3.0f64).max(1.0 - (2.0 * rho - 1.0).powi(3))).max(1e-15);
+        self.nu = 2.0;
+    }
+}
+
 fn levenberg_marquardt(th0: Theta, u: &[f64], y: &[f64], max_iter: usize, tol: f64) -> Lm {
     let p = th0.p();
     let im2 = th0.im2();
     let mut th = th0;
     let mut ne = normal_equations(&th, u, y);
-    let mut lambda = 1e-3;
-    let mut nu = 2.0;
+    let mut damping = Damping {
+        lambda: 1e-3,
+        nu: 2.0,
+    };
     let mut converged = false;
     let mut iterations = 0;
     while iterations < max_iter {
-        if ne.cost == 0.0 {
+        if ne.cost == 0.0 || step_is_insignificant(&ne, p, u.len()) {
             converged = true;
             break;
         }
-        // Statistical test: the Gauss-Newton step H^-1 g is shorter than STEP_SE standard errors in the
-        // metric of the estimate's covariance s^2 H^-1 (g^T H^-1 g <= STEP_SE^2 s^2).
-        if let Some(dec) = gn_decrement(&ne, p) {
-            let s2 = ne.cost / (u.len() - p) as f64;
-            if dec <= STEP_SE * STEP_SE * s2 {
-                converged = true;
-                break;
-            }
-        }
         iterations += 1;
-        let Some(delta) = lm_step(&ne, p, lambda) else {
-            lambda *= nu;
-            nu *= 2.0;
-            if lambda > LAMBDA_MAX {
+        let Some(delta) = lm_step(&ne, p, damping.lambda) else {
+            if !damping.reject() {
                 converged = true;
                 break;
             }
@@ -882,23 +917,14 @@ fn levenberg_marquardt(th0: Theta, u: &[f64], y: &[f64], max_iter: usize, tol: f
             *t += d;
         }
         let small = (0..p).all(|i| delta[i].abs() <= tol * (th.v[i].abs() + tol));
-        // Predicted decrease of the linearised cost: delta^T g + lambda delta^T D delta (> 0).
-        let dmax = (0..p).map(|i| ne.h[i][i]).fold(0.0, f64::max);
-        let pred: f64 = (0..p)
-            .map(|i| {
-                let dii = ne.h[i][i].max(1e-12 * dmax);
-                delta[i] * ne.g[i] + lambda * dii * delta[i] * delta[i]
-            })
-            .sum();
+        let pred = predicted_decrease(&ne, &delta, p, damping.lambda);
         let tn = (trial.v[im2] > M2_MIN).then(|| normal_equations(&trial, u, y));
         let actual = tn.map_or(f64::NEG_INFINITY, |t| ne.cost - t.cost);
         // MINPACK's test: neither the actual nor the predicted relative decrease exceeds FTOL.
         let flat = pred <= FTOL * ne.cost && actual.abs() <= FTOL * ne.cost;
         match tn {
             Some(tn) if tn.cost.is_finite() && tn.cost < ne.cost => {
-                let rho = if pred > 0.0 { actual / pred } else { 0.0 };
-                lambda = (lambda * (1.0 / 3.0f64).max(1.0 - (2.0 * rho - 1.0).powi(3))).max(1e-15);
-                nu = 2.0;
+                damping.accept(if pred > 0.0 { actual / pred } else { 0.0 });
                 th = trial;
                 ne = tn;
                 if small || flat {
@@ -906,16 +932,14 @@ fn levenberg_marquardt(th0: Theta, u: &[f64], y: &[f64], max_iter: usize, tol: f
                     break;
                 }
             }
+            // Even a negligible step does not decrease the cost: a minimum at the resolution of the
+            // (piecewise smooth) cost.
+            _ if small || flat => {
+                converged = true;
+                break;
+            }
             _ => {
-                if small || flat {
-                    // Even a negligible step does not decrease the cost: a minimum at the resolution of
-                    // the (piecewise smooth) cost.
-                    converged = true;
-                    break;
-                }
-                lambda *= nu;
-                nu *= 2.0;
-                if lambda > LAMBDA_MAX {
+                if !damping.reject() {
                     converged = true;
                     break;
                 }

@@ -240,84 +240,113 @@ pub fn select_window(
         });
     }
     let given = opts.start.is_some() || opts.end.is_some();
-    let range = if given {
-        let from = opts.start.unwrap_or(f64::NEG_INFINITY);
-        let to = opts.end.unwrap_or(f64::INFINITY);
-        let first = t.partition_point(|&v| v < from);
-        let end = t.partition_point(|&v| v <= to).max(first);
-        if end - first < 3 {
-            return Err(FrequencyError::EmptyWindow {
-                start: from,
-                end: to,
-                samples: end - first,
-            });
-        }
-        first..end
+    let (range, source) = if given {
+        (given_range(t, opts)?, WindowSource::Given)
     } else {
-        0..t.len()
-    };
-    let source = if given {
-        WindowSource::Given
-    } else {
-        WindowSource::WholeRecord
+        (0..t.len(), WindowSource::WholeRecord)
     };
     let Some(u) = rec.u else {
-        let omega = opts.omega.ok_or(FrequencyError::Missing {
-            name: "omega",
-            why: "without an input column the frequency cannot be found",
-        })?;
-        let (s, e) = (t[range.start], t[range.end - 1]);
-        return Ok(SineWindow {
-            start: s,
-            end: e,
-            first_sample: range.start,
-            samples: range.len(),
-            omega,
-            input_amplitude: None,
-            input_offset: None,
-            input_residual: None,
-            periods: (e - s) * omega / TAU,
-            source,
-        });
-    };
-    let whole = |range: std::ops::Range<usize>| {
-        window::window_over(t, u, range.clone(), opts.omega, source).ok_or(
-            FrequencyError::NoFrequency {
-                start: t[range.start],
-                end: t[range.end - 1],
-            },
-        )
+        return output_only_window(t, range, opts, source);
     };
     if given {
-        return whole(range);
+        return whole_window(t, u, range, opts.omega, source);
     }
+    detected_window(t, u, range, opts.omega)
+}
+
+/// The samples between the user's `start` and `end` (at least three).
+fn given_range(
+    t: &[f64],
+    opts: &AnalysisOptions,
+) -> Result<std::ops::Range<usize>, FrequencyError> {
+    let from = opts.start.unwrap_or(f64::NEG_INFINITY);
+    let to = opts.end.unwrap_or(f64::INFINITY);
+    let first = t.partition_point(|&v| v < from);
+    let end = t.partition_point(|&v| v <= to).max(first);
+    if end - first < 3 {
+        return Err(FrequencyError::EmptyWindow {
+            start: from,
+            end: to,
+            samples: end - first,
+        });
+    }
+    Ok(first..end)
+}
+
+/// A record without an input column: the window is the range, at the frequency the user declared.
+fn output_only_window(
+    t: &[f64],
+    range: std::ops::Range<usize>,
+    opts: &AnalysisOptions,
+    source: WindowSource,
+) -> Result<SineWindow, FrequencyError> {
+    let omega = opts.omega.ok_or(FrequencyError::Missing {
+        name: "omega",
+        why: "without an input column the frequency cannot be found",
+    })?;
+    let (s, e) = (t[range.start], t[range.end - 1]);
+    Ok(SineWindow {
+        start: s,
+        end: e,
+        first_sample: range.start,
+        samples: range.len(),
+        omega,
+        input_amplitude: None,
+        input_offset: None,
+        input_residual: None,
+        periods: (e - s) * omega / TAU,
+        source,
+    })
+}
+
+/// The whole range as one window, its frequency fitted to the input (or the declared one).
+fn whole_window(
+    t: &[f64],
+    u: &[f64],
+    range: std::ops::Range<usize>,
+    omega: Option<f64>,
+    source: WindowSource,
+) -> Result<SineWindow, FrequencyError> {
+    window::window_over(t, u, range.clone(), omega, source).ok_or(FrequencyError::NoFrequency {
+        start: t[range.start],
+        end: t[range.end - 1],
+    })
+}
+
+/// The steps of constant frequency the input holds: the one step, the one at the declared frequency, or the
+/// whole record when there are none.
+fn detected_window(
+    t: &[f64],
+    u: &[f64],
+    range: std::ops::Range<usize>,
+    omega: Option<f64>,
+) -> Result<SineWindow, FrequencyError> {
+    let source = WindowSource::WholeRecord;
     let steps = window::detect(t, u);
     let omegas: Vec<f64> = steps.iter().map(|s| s.omega).collect();
-    match (opts.omega, steps.len()) {
-        (None, 0) => whole(range),
-        (None, 1) => Ok(steps.into_iter().next().expect("one step")),
-        (None, _) => Err(FrequencyError::SeveralSteps { omegas }),
-        (Some(w), _) => {
-            let best = steps
-                .iter()
-                .filter(|s| (s.omega / w - 1.0).abs() <= OMEGA_MATCH)
-                .max_by_key(|s| s.samples);
-            match best {
-                // The declared frequency wins; the input's fit is redone at it.
-                Some(s) => {
-                    Ok(
-                        window::window_over(t, u, s.range(), Some(w), WindowSource::Detected)
-                            .expect("a declared omega always gives a window"),
-                    )
-                }
-                None if steps.is_empty() => whole(range),
-                None => Err(FrequencyError::NoStepAt {
-                    omega: w,
-                    tolerance: 100.0 * OMEGA_MATCH,
-                    found: omegas,
-                }),
-            }
-        }
+    let Some(w) = omega else {
+        return match steps.len() {
+            0 => whole_window(t, u, range, None, source),
+            1 => Ok(steps.into_iter().next().expect("one step")),
+            _ => Err(FrequencyError::SeveralSteps { omegas }),
+        };
+    };
+    let best = steps
+        .iter()
+        .filter(|s| (s.omega / w - 1.0).abs() <= OMEGA_MATCH)
+        .max_by_key(|s| s.samples);
+    match best {
+        // The declared frequency wins; the input's fit is redone at it.
+        Some(s) => Ok(
+            window::window_over(t, u, s.range(), Some(w), WindowSource::Detected)
+                .expect("a declared omega always gives a window"),
+        ),
+        None if steps.is_empty() => whole_window(t, u, range, Some(w), source),
+        None => Err(FrequencyError::NoStepAt {
+            omega: w,
+            tolerance: 100.0 * OMEGA_MATCH,
+            found: omegas,
+        }),
     }
 }
 
@@ -687,20 +716,7 @@ pub fn analyse_steps(
             fit_degrees(&sub, w.omega, amplitude, degree, transient)
         })
         .collect();
-    let degree_bic: Vec<(usize, Option<f64>)> = degrees_to_fit(degree)
-        .into_iter()
-        .map(|n| {
-            let sum: Option<f64> = per_step
-                .iter()
-                .map(|fits| {
-                    fits.iter()
-                        .find(|(d, _)| *d == n)
-                        .and_then(|(_, r)| r.as_ref().ok().map(bic))
-                })
-                .sum();
-            (n, sum)
-        })
-        .collect();
+    let degree_bic = summed_bic(&per_step, degree);
     let (chosen, rule) = match degree {
         Some(n) => (n, "declared"),
         None => degree_bic
@@ -712,21 +728,7 @@ pub fn analyse_steps(
     let steps: Vec<StepAnalysis> = windows
         .into_iter()
         .zip(per_step)
-        .map(|(w, fits)| {
-            let sub = sub_record(rec, w.range());
-            match conclude(&sub, w.clone(), fits, chosen, rule) {
-                Ok(a) => StepAnalysis {
-                    window: w,
-                    analysis: Some(a),
-                    error: None,
-                },
-                Err(e) => StepAnalysis {
-                    window: w,
-                    analysis: None,
-                    error: Some(e.to_string()),
-                },
-            }
-        })
+        .map(|(w, fits)| conclude_step(rec, w, fits, chosen, rule))
         .collect();
     let bode = bode_points(&steps);
     let border_spread = spread(&bode);
@@ -743,6 +745,50 @@ pub fn analyse_steps(
         border_spread,
         explained_steps,
     })
+}
+
+/// Each degree's BIC summed over the steps (`None` when a step could not be fitted at that degree).
+fn summed_bic(
+    per_step: &[Vec<(usize, Result<FrequencyEstimate, FrequencyError>)>],
+    declared: Option<usize>,
+) -> Vec<(usize, Option<f64>)> {
+    degrees_to_fit(declared)
+        .into_iter()
+        .map(|n| {
+            let sum: Option<f64> = per_step
+                .iter()
+                .map(|fits| {
+                    fits.iter()
+                        .find(|(d, _)| *d == n)
+                        .and_then(|(_, r)| r.as_ref().ok().map(bic))
+                })
+                .sum();
+            (n, sum)
+        })
+        .collect()
+}
+
+/// One step's analysis at the chosen degree, or the reason it has none.
+fn conclude_step(
+    rec: &SineRecord,
+    w: SineWindow,
+    fits: Vec<(usize, Result<FrequencyEstimate, FrequencyError>)>,
+    chosen: usize,
+    rule: &str,
+) -> StepAnalysis {
+    let sub = sub_record(rec, w.range());
+    match conclude(&sub, w.clone(), fits, chosen, rule) {
+        Ok(a) => StepAnalysis {
+            window: w,
+            analysis: Some(a),
+            error: None,
+        },
+        Err(e) => StepAnalysis {
+            window: w,
+            analysis: None,
+            error: Some(e.to_string()),
+        },
+    }
 }
 
 /// The identified steps by increasing omega, each as the member of its model/dual pair whose phase

@@ -69,6 +69,170 @@ fn sigma_from_differences(y: &[f64]) -> f64 {
     1.4826 * m / 6f64.sqrt()
 }
 
+/// Each sample's place on the phase grid: its period, its bin in the period and its offset from the bin's
+/// centre (rad), with the output it carries.
+struct Grid<'a> {
+    y: &'a [f64],
+    period: Vec<usize>,
+    bin: Vec<usize>,
+    offset: Vec<f64>,
+    bins: usize,
+}
+
+impl<'a> Grid<'a> {
+    /// Place the samples of phases `rho` on bins of width `delta` centred on the first sample's phase.
+    fn new(rho: &[f64], y: &'a [f64], bins: usize, delta: f64) -> Self {
+        let b = bins as i64;
+        let mut grid = Grid {
+            y,
+            period: Vec::with_capacity(rho.len()),
+            bin: Vec::with_capacity(rho.len()),
+            offset: Vec::with_capacity(rho.len()),
+            bins,
+        };
+        for &r in rho {
+            let x = (r - rho[0]) / delta;
+            let g = x.round();
+            let gi = g as i64;
+            grid.period.push(gi.div_euclid(b) as usize);
+            grid.bin.push(gi.rem_euclid(b) as usize);
+            grid.offset.push((x - g) * delta);
+        }
+        grid
+    }
+
+    /// The samples of the periods `from..to`.
+    fn within(&self, from: usize, to: usize) -> impl Iterator<Item = usize> + '_ {
+        (0..self.y.len()).filter(move |&i| self.period[i] >= from && self.period[i] < to)
+    }
+
+    /// Per-bin means and counts over the periods `from..to`.
+    fn bin_means(&self, from: usize, to: usize) -> (Vec<f64>, Vec<f64>) {
+        let mut s = vec![0.0; self.bins];
+        let mut c = vec![0.0; self.bins];
+        for i in self.within(from, to) {
+            s[self.bin[i]] += self.y[i];
+            c[self.bin[i]] += 1.0;
+        }
+        for (s, &c) in s.iter_mut().zip(&c) {
+            if c > 0.0 {
+                *s /= c;
+            }
+        }
+        (s, c)
+    }
+
+    /// Pooled within-bin variance over the periods `from..to`, with its degrees of freedom.
+    fn pooled(&self, from: usize, to: usize, mean: &[f64], cnt: &[f64]) -> (f64, f64) {
+        let mut ss = 0.0;
+        let mut n = 0.0;
+        for i in self.within(from, to) {
+            ss += (self.y[i] - mean[self.bin[i]]).powi(2);
+            n += 1.0;
+        }
+        let used = cnt.iter().filter(|&&c| c > 0.0).count() as f64;
+        let dof = n - used;
+        (if dof > 0.0 { ss / dof } else { 0.0 }, dof)
+    }
+
+    /// The noise variance of one sample inside the periods `from..to` (pooled within bins when the bins
+    /// give at least half a degree of freedom per bin, from second differences of the whole record
+    /// otherwise).
+    fn noise_variance(&self, from: usize, to: usize, mean: &[f64], cnt: &[f64]) -> f64 {
+        let (var, dof) = self.pooled(from, to, mean, cnt);
+        if dof >= 0.5 * self.bins as f64 {
+            var
+        } else {
+            sigma_from_differences(self.y).powi(2)
+        }
+    }
+
+    /// The first steady period of the `full` periods (module docs, "Steady state").
+    fn steady_start(&self, full: usize, sigma_floor: f64) -> usize {
+        let m_ref = if full >= 4 { full / 2 } else { full.min(2) };
+        let from = full - m_ref;
+        let (rmean, rcnt) = self.bin_means(from, full);
+        let var = self.noise_variance(from, full, &rmean, &rcnt) + sigma_floor * sigma_floor;
+        let mut ss = vec![0.0; full];
+        let mut n = vec![0.0; full];
+        for i in self.within(0, full) {
+            ss[self.period[i]] += (self.y[i] - rmean[self.bin[i]]).powi(2);
+            n[self.period[i]] += 1.0;
+        }
+        let mut k0 = 0;
+        for k in 0..full {
+            if n[k] == 0.0 {
+                continue;
+            }
+            let chi = ss[k] / n[k] / var;
+            let thr = (1.0 + 1.0 / m_ref as f64) * (1.0 + 5.0 * (2.0 / n[k]).sqrt());
+            if chi > thr {
+                k0 = k + 1;
+            }
+        }
+        k0.min(full - 1)
+    }
+
+    /// The noise standard deviation of one sample in the steady periods `k0..full`.
+    fn steady_sigma(&self, k0: usize, full: usize, mean: &[f64], cnt: &[f64]) -> f64 {
+        let (var, dof) = self.pooled(k0, full, mean, cnt);
+        if dof >= 0.5 * self.bins as f64 {
+            var.sqrt()
+        } else {
+            let steady: Vec<f64> = self.within(k0, full).map(|i| self.y[i]).collect();
+            sigma_from_differences(&steady)
+        }
+    }
+
+    /// Per-bin sums of the offsets from the bin centres over the periods `from..to`.
+    fn offset_sums(&self, from: usize, to: usize) -> Vec<f64> {
+        let mut off = vec![0.0; self.bins];
+        for i in self.within(from, to) {
+            off[self.bin[i]] += self.offset[i];
+        }
+        off
+    }
+}
+
+/// The first period to average: after the `skip` given (rad of phase), or after the detected transient,
+/// with a warning when it cannot be checked or when it takes most of the record.
+fn first_steady(
+    grid: &Grid,
+    full: usize,
+    skip: Option<f64>,
+    span: f64,
+    sigma_floor: f64,
+    warnings: &mut Vec<String>,
+) -> Result<usize, FrequencyError> {
+    let k0 = match skip {
+        Some(s) => {
+            let k = (s / std::f64::consts::TAU - 1e-9).ceil().max(0.0) as usize;
+            if k >= full {
+                return Err(FrequencyError::NoFullPeriod {
+                    periods: span,
+                    transient: k,
+                });
+            }
+            return Ok(k);
+        }
+        None if full == 1 => {
+            warnings.push(
+                "only one full period: the steady state could not be checked (record more periods)"
+                    .to_string(),
+            );
+            0
+        }
+        None => grid.steady_start(full, sigma_floor),
+    };
+    if k0 > 0 && k0 * 2 > full {
+        warnings.push(format!(
+            "the transient took {k0} of {full} full periods: record more periods so that the steady \
+             state dominates the record"
+        ));
+    }
+    Ok(k0)
+}
+
 /// Fold the record: `rho[i] = omega t[i] - phi_u` is each sample's phase, `bins` the number of bins per
 /// period, `skip` (rad of phase) an explicit transient to drop, or `None` to detect it.
 pub(super) fn fold(
@@ -82,19 +246,7 @@ pub(super) fn fold(
     let rho0 = rho[0];
     let scale = y.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1.0);
     let sigma_floor = 1e-12 * scale;
-
-    // Global bin index, period, bin in period, offset from the bin centre.
-    let mut period = Vec::with_capacity(rho.len());
-    let mut bin = Vec::with_capacity(rho.len());
-    let mut offset = Vec::with_capacity(rho.len());
-    for &r in rho {
-        let x = (r - rho0) / delta;
-        let g = x.round();
-        let gi = g as i64;
-        period.push(gi.div_euclid(b as i64) as usize);
-        bin.push(gi.rem_euclid(b as i64) as usize);
-        offset.push((x - g) * delta);
-    }
+    let grid = Grid::new(rho, y, b, delta);
     let last_global = ((rho[rho.len() - 1] - rho0) / delta).round() as usize;
     let full = (last_global + 1) / b;
     let span = (rho[rho.len() - 1] - rho0) / std::f64::consts::TAU;
@@ -105,115 +257,10 @@ pub(super) fn fold(
         });
     }
     let mut warnings = Vec::new();
-
-    // Per-bin means over a set of periods.
-    let bin_means = |from: usize, to: usize| -> (Vec<f64>, Vec<f64>) {
-        let mut s = vec![0.0; b];
-        let mut c = vec![0.0; b];
-        for i in 0..y.len() {
-            if period[i] >= from && period[i] < to {
-                s[bin[i]] += y[i];
-                c[bin[i]] += 1.0;
-            }
-        }
-        for j in 0..b {
-            if c[j] > 0.0 {
-                s[j] /= c[j];
-            }
-        }
-        (s, c)
-    };
-    // Pooled within-bin variance over a set of periods, with its degrees of freedom.
-    let pooled = |from: usize, to: usize, mean: &[f64], cnt: &[f64]| -> (f64, f64) {
-        let mut ss = 0.0;
-        let mut n = 0.0;
-        for i in 0..y.len() {
-            if period[i] >= from && period[i] < to {
-                ss += (y[i] - mean[bin[i]]).powi(2);
-                n += 1.0;
-            }
-        }
-        let used = cnt.iter().filter(|&&c| c > 0.0).count() as f64;
-        let dof = n - used;
-        (if dof > 0.0 { ss / dof } else { 0.0 }, dof)
-    };
-
-    let k0 = match skip {
-        Some(s) => {
-            let k = (s / std::f64::consts::TAU - 1e-9).ceil().max(0.0) as usize;
-            if k >= full {
-                return Err(FrequencyError::NoFullPeriod {
-                    periods: span,
-                    transient: k,
-                });
-            }
-            k
-        }
-        None if full == 1 => {
-            warnings.push(
-                "only one full period: the steady state could not be checked (record more periods)"
-                    .to_string(),
-            );
-            0
-        }
-        None => {
-            let m_ref = if full >= 4 { full / 2 } else { full.min(2) };
-            let from = full - m_ref;
-            let (rmean, rcnt) = bin_means(from, full);
-            let (var, dof) = pooled(from, full, &rmean, &rcnt);
-            let var = if dof >= 0.5 * b as f64 {
-                var
-            } else {
-                sigma_from_differences(y).powi(2)
-            };
-            let var = var + sigma_floor * sigma_floor;
-            let mut ss = vec![0.0; full];
-            let mut n = vec![0.0; full];
-            for i in 0..y.len() {
-                if period[i] < full {
-                    ss[period[i]] += (y[i] - rmean[bin[i]]).powi(2);
-                    n[period[i]] += 1.0;
-                }
-            }
-            let mut k0 = 0;
-            for k in 0..full {
-                if n[k] == 0.0 {
-                    continue;
-                }
-                let chi = ss[k] / n[k] / var;
-                let thr = (1.0 + 1.0 / m_ref as f64) * (1.0 + 5.0 * (2.0 / n[k]).sqrt());
-                if chi > thr {
-                    k0 = k + 1;
-                }
-            }
-            k0.min(full - 1)
-        }
-    };
-    if skip.is_none() && k0 > 0 && k0 * 2 > full {
-        warnings.push(format!(
-            "the transient took {k0} of {full} full periods: record more periods so that the steady \
-             state dominates the record"
-        ));
-    }
-
-    let (mean, cnt) = bin_means(k0, full);
-    let (var, dof) = pooled(k0, full, &mean, &cnt);
-    let sigma = if dof >= 0.5 * b as f64 {
-        var.sqrt()
-    } else {
-        let steady: Vec<f64> = (0..y.len())
-            .filter(|&i| period[i] >= k0 && period[i] < full)
-            .map(|i| y[i])
-            .collect();
-        sigma_from_differences(&steady)
-    };
-    // Mean phase offsets.
-    let mut off = vec![0.0; b];
-    for i in 0..y.len() {
-        if period[i] >= k0 && period[i] < full {
-            off[bin[i]] += offset[i];
-        }
-    }
+    let k0 = first_steady(&grid, full, skip, span, sigma_floor, &mut warnings)?;
+    let (mean, cnt) = grid.bin_means(k0, full);
+    let sigma = grid.steady_sigma(k0, full, &mean, &cnt);
+    let off = grid.offset_sums(k0, full);
     let mut out = Folded {
         phase: Vec::with_capacity(b),
         w: Vec::with_capacity(b),
