@@ -22,8 +22,8 @@ from pathlib import Path
 SRC = Path(__file__).resolve().parent.parent / "src"
 
 
-def module_of(path: Path) -> tuple:
-    rel = path.relative_to(SRC).with_suffix("")
+def module_of(path: Path, src: Path = SRC) -> tuple:
+    rel = path.relative_to(src).with_suffix("")
     parts = list(rel.parts)
     if parts[-1] in ("mod", "lib"):
         parts = parts[:-1]
@@ -143,14 +143,14 @@ def sccs(nodes: set, edges: dict) -> list:
     return out
 
 
-def main() -> int:
-    prefixes = [tuple(p.split("::")) for p in sys.argv[1:]]
-    files = [p for p in SRC.rglob("*.rs") if "bin" not in p.relative_to(SRC).parts]
-    modules = {module_of(p): p for p in files}
+def find_loops(src: Path = SRC) -> list:
+    """Every loop of the library under `src`, as (which graph, the modules in it)."""
+    files = [p for p in src.rglob("*.rs") if "bin" not in p.relative_to(src).parts]
+    modules = {module_of(p, src): p for p in files}
     edges = {}
     known = set(modules)
     for p in files:
-        here = module_of(p)
+        here = module_of(p, src)
         for inner, code in inline_modules(strip(p.read_text()), here):
             for segs in paths_in(code):
                 # An inline module's paths are its file's edges (`super` resolved from the inline module).
@@ -170,6 +170,12 @@ def main() -> int:
         for comp in sccs({cut(m) for m in modules}, g):
             if comp not in [c for _, c in loops]:
                 loops.append(("files" if depth is None else f"modules, depth {depth}", comp))
+    return loops
+
+
+def main() -> int:
+    prefixes = [tuple(p.split("::")) for p in sys.argv[1:]]
+    loops = find_loops()
     shown = [
         (what, comp)
         for what, comp in loops

@@ -1,15 +1,17 @@
-//! Each figure's data and caption against the numbers of the diagnosis's JSON, on two test-bench records:
-//! one whose disturbance is coloured (a noise model is the last step), one with curved borders (a
-//! deterministic effect). No PNG is decoded: the figures are values ([`ReportFigure`]).
+//! The report's tests: each figure's data and caption against the numbers of the diagnosis's JSON, on two
+//! test-bench records: one whose disturbance is coloured (a noise model is the last step), one with curved
+//! borders (a deterministic effect). No PNG is decoded: the figures are values ([`ReportFigure`]). They live
+//! with the bench, whose records they need, so that the report does not import the bench (which imports
+//! the report for its own checks).
 
 use serde_json::Value;
 
-use super::figures::{Curves, Names, ReportFigure, figures, rms_between, rms_of};
-use super::input::{ReportInput, Validation};
-use crate::diagnose::bench::{Scenario, scenario};
+use super::{Scenario, scenario};
 use crate::diagnose::effects::figure::fmt;
 use crate::diagnose::effects::{coloured_noise, curved_borders};
 use crate::diagnose::engine::{DiagnoseConfig, Diagnosis, diagnose};
+use crate::diagnose::report::figures::{Curves, Names, ReportFigure, figures, rms_between, rms_of};
+use crate::diagnose::report::input::{ReportInput, Validation};
 use crate::diagnose::search::engine::usable_lags;
 use crate::report::plot::{Series, SeriesStyle};
 
@@ -318,7 +320,8 @@ fn the_report_says_declared_or_chosen_and_shows_the_warnings() {
     let warnings =
         vec!["the input never reverses: nothing can be said about the backlash".to_string()];
     let dir = std::env::temp_dir().join(format!("backlash-report-words-{}", std::process::id()));
-    let md = super::write_report(&dir, &case.d, &case.input(&[], &warnings)).unwrap();
+    let md =
+        crate::diagnose::report::write_report(&dir, &case.d, &case.input(&[], &warnings)).unwrap();
     let text = std::fs::read_to_string(md).unwrap();
     assert!(
         text.contains(&format!("## Warnings\n\n- **{}**", warnings[0])),

@@ -216,14 +216,4 @@ mod tests {
                 .is_none()
         );
     }
-
-    /// Named in at least 9 of 10 held-out test-bench records, the held-out error falling in each, with its
-    /// evidence figure in the report.
-    #[test]
-    fn named_in_held_out_records() {
-        crate::diagnose::bench::tests::check_effect(
-            ID,
-            "one-step prediction errors of the model with that noise",
-        );
-    }
 }

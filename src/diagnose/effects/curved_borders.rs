@@ -225,11 +225,4 @@ mod tests {
             vec![extension([0.0; 2], [0.0; 2])]
         );
     }
-
-    /// Named in at least 9 of 10 held-out test-bench records, the held-out error falling in each, with its
-    /// evidence figure in the report.
-    #[test]
-    fn named_in_held_out_records() {
-        crate::diagnose::bench::tests::check_effect(ID, "straight borders leave no trend");
-    }
 }

@@ -189,11 +189,4 @@ mod tests {
         let flat = vec![0.0; 11];
         assert!(DeadZone.plan(&context(&m, &flat, &flat, &flat)).is_none());
     }
-
-    /// Named in at least 9 of 10 held-out test-bench records, the held-out error falling in each, with its
-    /// evidence figure in the report.
-    #[test]
-    fn named_in_held_out_records() {
-        crate::diagnose::bench::tests::check_effect(ID, "the dead zone the fit");
-    }
 }

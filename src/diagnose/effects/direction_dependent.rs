@@ -177,11 +177,4 @@ mod tests {
             with.simulate(&u, Rest::ZERO, 80, 1e9).unwrap().y
         );
     }
-
-    /// Named in at least 9 of 10 held-out test-bench records, the held-out error falling in each, with its
-    /// evidence figure in the report.
-    #[test]
-    fn named_in_held_out_records() {
-        crate::diagnose::bench::tests::check_effect(ID, "rises and falls at different speeds");
-    }
 }

@@ -64,18 +64,3 @@ impl Effect for ExtraDelay {
         3f64.ln()
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Named in at least 9 of 10 held-out test-bench records, the held-out error falling in each, with its
-    /// evidence figure in the report.
-    #[test]
-    fn named_in_held_out_records() {
-        crate::diagnose::bench::tests::check_effect(
-            ID,
-            "the linear block misses a term or a delay",
-        );
-    }
-}

@@ -160,14 +160,4 @@ mod tests {
         assert_eq!(p.alternatives[0].template.base.nb, 2);
         assert!(ExtraDelay.plan(&context(&edge, &y, &y, &y)).is_none());
     }
-
-    /// Named in at least 9 of 10 held-out test-bench records, the held-out error falling in each, with its
-    /// evidence figure in the report.
-    #[test]
-    fn named_in_held_out_records() {
-        crate::diagnose::bench::tests::check_effect(
-            ID,
-            "the linear block misses a term or a delay",
-        );
-    }
 }

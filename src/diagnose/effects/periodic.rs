@@ -229,11 +229,4 @@ mod tests {
         let start = &Periodic.plan(&cx).unwrap().alternatives[0].starts[0];
         assert_eq!(start.exts[0].theta[1..], [0.0, 0.0]);
     }
-
-    /// Named in at least 9 of 10 held-out test-bench records, the held-out error falling in each, with its
-    /// evidence figure in the report.
-    #[test]
-    fn named_in_held_out_records() {
-        crate::diagnose::bench::tests::check_effect(ID, "stands far above the noise floor");
-    }
 }

@@ -183,11 +183,4 @@ mod tests {
         assert_eq!(e.n_estimated(), 3);
         assert_eq!(e.n_fitted(), 1);
     }
-
-    /// Named in at least 9 of 10 held-out test-bench records, the held-out error falling in each, with its
-    /// evidence figure in the report.
-    #[test]
-    fn named_in_held_out_records() {
-        crate::diagnose::bench::tests::check_effect(ID, "sit on a grid of step");
-    }
 }

@@ -4,7 +4,8 @@
 //! - [`problem`]: a record split into a fit part and a held-out part, and the fits on it (the linear model,
 //!   the plain backlash model, any extended model from its starts).
 //! - [`starts`]: what a candidate's fit starts from (the [`starts::Plan`] an effect returns).
-//! - [`structure`]: the choice of orders, delay and initial state when they are not declared.
+//! - [`orders`]: a structure (orders and delay); [`structure`]: its choice, with the delay and initial state,
+//!   when they are not declared.
 //! - [`lm`]: the bounded Levenberg-Marquardt fitter, costs, BIC and covariances.
 //!
 //! Nothing here names an effect: an extension's behaviour comes from its effect (`crate::diagnose::effects`).
@@ -12,6 +13,7 @@
 pub(crate) mod linear_oe;
 pub mod lm;
 pub mod model;
+pub mod orders;
 pub mod problem;
 pub mod rate;
 pub mod starts;

@@ -19,7 +19,7 @@ use crate::diagnose::fit::lm::{LmOptions, cost_of, covariance, evaluate, levenbe
 use crate::diagnose::fit::model::{
     BaseModel, EffectModel, Objective, Rest, Scales, Simulation, coefficient_scales, is_stable,
 };
-use crate::diagnose::fit::structure::Structure;
+use crate::diagnose::fit::orders::Structure;
 use crate::identify::mrgia::{Mrgia, MrgiaConfig};
 use crate::identify::oe::{self, OeConfig};
 use crate::stats::std_dev;

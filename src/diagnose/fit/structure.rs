@@ -29,6 +29,7 @@ use serde::Serialize;
 use crate::diagnose::fit::linear_oe::{self, LinearOe};
 use crate::diagnose::fit::lm::LmOptions;
 use crate::diagnose::fit::model::{BaseModel, EffectModel, Objective, Rest};
+pub use crate::diagnose::fit::orders::Structure;
 use crate::diagnose::fit::problem::{Problem, fit_plain, linear_base, stabilize};
 use crate::identify::mrgia::Estimate;
 use crate::identify::oe::check_excited;
@@ -55,31 +56,6 @@ pub const CRITERION: &str = "free-run RMSE on the last third of the fit part's f
 model fitted on the first two thirds (structures ranked first by their linear output-error model's free-run \
 RMSE there, the five best, the four smallest within 10% of the best and the best static one fitted fully; a structure whose fit the record does not \
 excite is not eligible); the fewest parameters within 1% of the lowest error wins, then the shortest delay";
-
-/// A model structure: `na` a coefficients, b_0..b_nb, input delay in samples.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
-pub struct Structure {
-    pub na: usize,
-    pub nb: usize,
-    pub delay: usize,
-}
-
-impl Structure {
-    /// Parameters of the backlash model of this structure (a, b, m2, c1, c2).
-    pub fn n_params(&self) -> usize {
-        self.na + self.nb + 4
-    }
-}
-
-impl std::fmt::Display for Structure {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "na = {}, nb = {}, delay = {}",
-            self.na, self.nb, self.delay
-        )
-    }
-}
 
 /// One structure compared.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -10,6 +10,3 @@ pub mod output;
 pub use figures::ReportFigure;
 pub use input::{ReportError, ReportInput, Validation};
 pub use markdown::write_report;
-
-#[cfg(test)]
-mod tests;

@@ -102,9 +102,9 @@ pub const INPUT_LINE_RATIO: f64 = 20.0;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::effects::rig::Draw;
     use rand_chacha::ChaCha8Rng;
     use rand_core::SeedableRng;
+    use rand_distr::{Distribution, Uniform};
 
     // Reference numbers computed independently in Python (NumPy, statsmodels 0.14 `AutoReg(trend="n")`,
     // scipy) from the same series; see each test.
@@ -179,8 +179,9 @@ mod tests {
         let periodic: Vec<f64> = (0..n).map(|k| (w * k as f64).sin()).collect();
         assert!(input_line_ratio(&periodic, w) > 1000.0);
         // Pseudo-random input: no line anywhere.
-        let mut draw = Draw(ChaCha8Rng::seed_from_u64(12345));
-        let noise: Vec<f64> = (0..n).map(|_| draw.uniform(-0.5, 0.5)).collect();
+        let uniform = Uniform::new(-0.5, 0.5).expect("a finite, non-empty range");
+        let mut rng = ChaCha8Rng::seed_from_u64(12345);
+        let noise: Vec<f64> = (0..n).map(|_| uniform.sample(&mut rng)).collect();
         assert!(input_line_ratio(&noise, w) < INPUT_LINE_RATIO);
         // Far from the input's line the ratio is small: only ordinates within one Fourier spacing count.
         assert!(input_line_ratio(&periodic, 2.0) < 1.0);

@@ -138,10 +138,3 @@ fn slip_range_play_and_exclusion() {
     assert!(!Friction.blocks(&contact, super::super::saturation::ID));
     assert!(!Friction.blocks(&extension(1.0, 1.0, FrictionForm::Series), curved));
 }
-
-/// Named in at least 9 of 10 held-out test-bench records, the held-out error falling in each, with its
-/// evidence figure in the report.
-#[test]
-fn named_in_held_out_records() {
-    crate::diagnose::bench::tests::check_effect(ID, "the friction element does");
-}
