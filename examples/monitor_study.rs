@@ -14,8 +14,8 @@
 
 use backlash::identify::oe::online::monitor::MonitorConfig;
 use backlash::identify::oe::online::monitor::study::{
-    Change, arl_interval, detect, drift_delay_bound, false_alarms, kl_per_sample, noise_std,
-    rule_crossings, rule_delay, step_delay_bound,
+    Change, arl_interval, arrival_delays, detect, drift_delay_bound, false_alarms, kl_per_sample,
+    noise_std, rule_crossings, rule_delay, step_delay_bound,
 };
 use backlash::identify::oe::plant_variant;
 use backlash::plant::PlantParams;
@@ -183,6 +183,18 @@ fn delay_table(threads: usize, name: &str, snr: f64, period: f64, runs: u64, arl
         )
     });
     let freeze = got[0].at - AFTER;
+    // Run i's record: its seed, its change and the change's sample.
+    let record = |i: usize| {
+        let (c, r) = jobs[i];
+        let (_, ratio, drift) = changes[c];
+        let at = got[i].at;
+        (2000 + r, make(ratio, drift)(at), at)
+    };
+    // The information as it arrives on each run's record (known; offset and gain may change with the play).
+    let arrival = parallel(threads, jobs.len(), |i| {
+        let (seed, change, at) = record(i);
+        arrival_delays(pl, sigma, seed, change, at, (period, horizon))
+    });
     // The threshold rule: tuned on unchanged records to the monitor's measured run length.
     let taus: Vec<f64> = (1..=400).map(|j| j as f64 * 0.0025 * play).collect();
     let tune_runs = 8u64;
@@ -208,17 +220,15 @@ fn delay_table(threads: usize, name: &str, snr: f64, period: f64, runs: u64, arl
         })
         .map_or(f64::INFINITY, |(_, t)| *t);
     let rule = parallel(threads, jobs.len(), |i| {
-        let (c, r) = jobs[i];
-        let (_, ratio, drift) = changes[c];
-        let at = got[i].at;
+        let (seed, change, at) = record(i);
         rule_delay(
             pl,
             sigma,
-            2000 + r,
+            seed,
             RULE_RHO_MIN,
             freeze,
             tau,
-            make(ratio, drift)(at),
+            change,
             at,
             horizon,
         )
@@ -233,10 +243,13 @@ fn delay_table(threads: usize, name: &str, snr: f64, period: f64, runs: u64, arl
         };
         let mut rd = vec![];
         let mut rule_missed = 0;
-        for ((j, g), r) in jobs.iter().zip(&got).zip(&rule) {
+        let (mut known, mut efficient) = (vec![], vec![]);
+        for (((j, g), r), a) in jobs.iter().zip(&got).zip(&rule).zip(&arrival) {
             if j.0 != c {
                 continue;
             }
+            known.extend(a.0);
+            efficient.extend(a.1);
             d.early += usize::from(g.early);
             match (g.delay, &g.alarm) {
                 (Some(x), Some(a)) if !g.early => {
@@ -272,12 +285,15 @@ fn delay_table(threads: usize, name: &str, snr: f64, period: f64, runs: u64, arl
         let onset =
             d.onset_err.iter().map(|e| e.abs()).sum::<f64>() / d.onset_err.len().max(1) as f64;
         println!(
-            "| {name} | {snr} | {label} | {:.0} | {:.1} | {:.2} | {:.1} | {:.2} | {:.0} ({rule_missed} missed) | {} | {} | {onset:.0} |",
+            "| {name} | {snr} | {label} | {:.0} | {:.1} | {:.2} | {:.1} | {:.2} | {:.1} | {:.1} | {:.2} | {:.0} ({rule_missed} missed) | {} | {} | {onset:.0} |",
             mean(&d.ours),
             bound,
             mean(&d.ours) / bound,
             eff,
             mean(&d.ours) / eff,
+            mean(&known),
+            mean(&efficient),
+            mean(&d.ours) / mean(&efficient),
             mean(&rd),
             d.early,
             d.missed,
@@ -423,9 +439,11 @@ fn main() {
     let fa = false_alarm_table(threads, &runs_fa);
     println!("\n## Detection delay (alarm_period 1e4)\n");
     println!(
-        "| plant | SNR | change | monitor delay | bound, offset and gain known | monitor / bound | bound, offset and gain unknown | monitor / bound | threshold rule delay | early alarms | missed | mean abs onset error |"
+        "| plant | SNR | change | monitor delay | bound, offset and gain known | monitor / bound | bound, offset and gain unknown | monitor / bound | arrival, offset and gain known | arrival, offset and gain may change | monitor / arrival | threshold rule delay | early alarms | missed | mean abs onset error |"
     );
-    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    println!(
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    );
     for snr in [20.0, 43.0] {
         let arl = fa
             .iter()

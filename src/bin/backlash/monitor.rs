@@ -49,12 +49,18 @@ pub struct MonitorArgs {
     pub plot: Option<PathBuf>,
 }
 
-/// Plotted per sample: time, play, play - 1.96 se, play + 1.96 se, statistic / threshold.
-const PLOTTED: usize = 5;
+/// Plotted per sample: time, play, play - 1.96 se, play + 1.96 se, statistic / threshold, the monitor's
+/// reference play. All but the time are NaN (not drawn) before the reference is frozen: the warm-up's swings
+/// of the estimate would set the axes and squash the monitored part.
+const PLOTTED: usize = 6;
 
 fn plotted(t: f64, s: &Session) -> [f64; PLOTTED] {
+    let Some((reference, _)) = s.monitor().reference() else {
+        return [t, f64::NAN, f64::NAN, f64::NAN, f64::NAN, f64::NAN];
+    };
     let (p, se) = play_of(s.estimator());
-    [t, p, p - 1.96 * se, p + 1.96 * se, s.monitor().statistic()]
+    let stat = s.monitor().statistic();
+    [t, p, p - 1.96 * se, p + 1.96 * se, stat, reference]
 }
 
 pub fn run(args: &MonitorArgs) -> Result<()> {
@@ -160,8 +166,13 @@ fn draw(
 ) -> Result<()> {
     let t = p.series(0);
     let against_time = |i: usize| -> Vec<(f64, f64)> {
-        t.iter().zip(p.series(i)).map(|(a, b)| (a.1, b.1)).collect()
+        t.iter()
+            .zip(p.series(i))
+            .map(|(a, b)| (a.1, b.1))
+            .filter(|v| v.1.is_finite())
+            .collect()
     };
+    let monitored = against_time(PLOTTED - 1);
     let summary = s.summary();
     let alarms: Vec<(f64, f64)> = summary
         .alarms
@@ -174,17 +185,18 @@ fn draw(
         .map(|a| (a.onset, a.play_before))
         .collect();
     let span = (
-        t.first().map_or(0.0, |v| v.1),
+        monitored.first().map_or(0.0, |v| v.0),
         t.last().map_or(1.0, |v| v.1),
     );
     let play = Panel {
-        title: "play c1 + c2 with its 95% band",
+        title: "estimated play c1 + c2, 95% band (from the reference on)",
         x_label: time_label,
         y_label: "play c1 + c2",
         series: vec![
-            Series::line("play", against_time(1)),
+            Series::line("estimated play", against_time(1)),
             Series::dashed("95% band", against_time(2)).color(1),
             Series::dashed("", against_time(3)).color(1),
+            Series::line("reference play of the test", monitored).color(4),
             Series::points("alarm (play after)", alarms).color(3),
             Series::points("onset (play before)", onsets).color(2),
         ],
@@ -192,7 +204,7 @@ fn draw(
         log_y: false,
     };
     let stat = Panel {
-        title: "CUSUM statistic / threshold (alarm at 1)",
+        title: "largest CUSUM statistic / its threshold (alarm at 1)",
         x_label: time_label,
         y_label: "statistic / threshold",
         series: vec![

@@ -23,7 +23,7 @@
 //! S(k)  = max(0, S(k-1) + z(k))                         CUSUM
 //! ```
 //!
-//! with r = [`MonitorConfig::wear_ratio`], w0 the output of the reference model with the tracked offset and
+//! with r one of the growths of the bank (below), w0 the output of the reference model with the tracked offset and
 //! gain (below) and the sums of the projection running over all samples since the reference. A play growth
 //! by r moves the output by about `r g(k)`. An output offset moves it by a constant, a change of the linear
 //! block's gain by a multiple of h (to first order: h is the output's derivative with respect to the log of
@@ -45,6 +45,14 @@
 //! samples before k only, so z(k) stays a log-likelihood ratio given the past; the tracker's own estimation
 //! error adds about `2 / NUISANCE_MEMORY` of the noise variance to the residual.
 //!
+//! **A bank of CUSUMs.** A CUSUM is fastest on the change it is tuned to; a step much larger than r is
+//! detected with the per-sample drift `(2 q r - r^2) gt^2 / (2 sigma^2)`, a fraction of its distance. So
+//! three CUSUMs run side by side, tuned to r = `wear_ratio` x [`BANK`] (10%, 25% and 50% by default), each
+//! with its own excursion window and its own threshold at a share of the false-alarm rate
+//! ([`BANK_SHARE`]: half to the tuned one, a quarter to each other; the rates add up to at most
+//! `1 / alarm_period`, so the bank's false alarms are no more frequent than one CUSUM's at that period). The
+//! first that alarms (in the bank's order) gives the alarm and its onset, and all restart.
+//!
 //! **Confirmation.** The first-order nuisance also adds variance to S over short stretches, so the alarm
 //! needs a second test, on the samples of S's current excursion (since it was last 0): the generalised
 //! likelihood ratio of a play growth with an unknown offset and gain change over that window,
@@ -55,9 +63,12 @@
 //!
 //! with e' and g' the residuals of e and g after least squares on (1, h) within the window (from running
 //! sums: no storage of the window). An offset or gain change is fitted away in e' whatever its size, a play
-//! growth is not. **The alarm comes when S >= H and G >= H.** `gt` depends on the input and the model
-//! only, never on the present measured output, so z(k) is a log-likelihood ratio of two Gaussian hypotheses
-//! about y(k) given the past, which bounds the false alarms of S; the second test only removes alarms.
+//! growth is not. **The alarm comes when S >= H and G >= H** (S, H and the window of one CUSUM of the
+//! bank). `gt` depends on the input and the model only, never on the present measured output, so z(k) is a
+//! log-likelihood ratio of two Gaussian hypotheses about y(k) given the past, which bounds the false alarms
+//! of S; the second test only removes alarms. The window's projection on (1, h) is also what costs time on
+//! a large step: while the backlash stays engaged on one side after the change, a play step looks like an
+//! offset step, and G grows only once the motion reverses (docs/RESULTS.md, "Detection delay").
 //!
 //! # The threshold H
 //!
@@ -68,11 +79,11 @@
 //! ARL0(H) = (exp(H + 1.166 d) - H - 1.166 d - 1) / K ,      d = sqrt(2 K)
 //! ```
 //!
-//! and H solves `ARL0(H) = alarm_period`. Two uncertainties of the reference are then covered: sigma^2 is
+//! and H solves `ARL0(H) = alarm_period / share` for the CUSUM's share of the rate ([`BANK_SHARE`]). Two uncertainties of the reference are then covered: sigma^2 is
 //! the recursion's noise variance raised to its upper 97.5% bound `s^2 (1 + 2 sqrt(2 / n))` (n samples
 //! behind it), and an error eps of the reference play tilts the log-likelihood ratio so that the run length
-//! becomes `ARL0(H (1 - 2 eps / r))`; with eps at two standard errors of the play, H is divided by
-//! `1 - 4 se / (r play)` (at least 0.5). H is recomputed from the moments every [`REFRESH`] samples.
+//! becomes `ARL0(H (1 - 2 eps / r))`; with eps at two standard errors of the play, each CUSUM's H is
+//! divided by `1 - 4 se / (r play)` with its own r (at least 0.5). H is recomputed from the moments every [`REFRESH`] samples.
 //! The test starts [`MIN_SAMPLES`] samples after the reference (the projection needs a few samples).
 //!
 //! # Alarm
@@ -101,6 +112,13 @@ use super::{Refined, Theta};
 use crate::identify::oe::SimState;
 use serde::{Deserialize, Serialize};
 
+/// The bank of CUSUMs: the growth each is tuned to, as a multiple of [`MonitorConfig::wear_ratio`] (module
+/// docs).
+pub const BANK: [f64; 3] = [1.0, 2.5, 5.0];
+/// The share of the false-alarm rate `1 / alarm_period` each CUSUM of the bank may spend (summing to 1, so
+/// that the bank's false alarms come no more often than once per period): half to the CUSUM tuned to
+/// `wear_ratio` (its threshold 0.69 higher than alone), a quarter to each of the others (module docs).
+pub const BANK_SHARE: [f64; 3] = [0.5, 0.25, 0.25];
 /// Samples after the reference before the test runs.
 pub const MIN_SAMPLES: u64 = 200;
 /// Samples between two recomputations of the threshold.
@@ -285,8 +303,8 @@ struct Detector {
     /// The play of the reference and its standard error.
     play: f64,
     play_se: f64,
-    /// Divisor of the threshold for the reference's error (module docs).
-    tilt: f64,
+    /// Divisor of each CUSUM's threshold for the reference's error (module docs).
+    tilt: [f64; BANK.len()],
     /// Samples since the reference (or the last re-reference).
     n: u64,
     /// Sums over those samples: h, h^2, g, h g, g^2.
@@ -295,21 +313,22 @@ struct Detector {
     sg: f64,
     shg: f64,
     sgg: f64,
-    threshold: f64,
-    stat: f64,
-    window: Window,
+    /// Per CUSUM of the bank: its threshold, its statistic and the sums over its current excursion.
+    threshold: [f64; BANK.len()],
+    stat: [f64; BANK.len()],
+    window: [Window; BANK.len()],
 }
 
 impl Detector {
     fn reset_moments(&mut self) {
         (self.n, self.sh, self.shh, self.sg, self.shg, self.sgg) = (0, 0.0, 0.0, 0.0, 0.0, 0.0);
-        self.threshold = f64::INFINITY;
+        self.threshold = [f64::INFINITY; BANK.len()];
         self.restart();
     }
 
     fn restart(&mut self) {
-        self.stat = 0.0;
-        self.window = Window::default();
+        self.stat = [0.0; BANK.len()];
+        self.window = [Window::default(); BANK.len()];
     }
 
     /// (beta0, beta1) of the least-squares projection of g on (1, h) and the mean squared residual.
@@ -327,11 +346,14 @@ impl Detector {
         (b0, b1, (rss / n).max(0.0))
     }
 
-    /// Threshold H of the module docs from the current moments.
+    /// Thresholds H of the module docs from the current moments: each CUSUM of the bank at the period
+    /// divided by its [`BANK_SHARE`].
     fn refresh_threshold(&mut self, r: f64, period: f64) {
         let (_, _, var) = self.projection();
-        let kl = r * r * var / (2.0 * self.sigma2);
-        self.threshold = threshold(kl, period) / self.tilt;
+        for (i, h) in self.threshold.iter_mut().enumerate() {
+            let kl = (BANK[i] * r).powi(2) * var / (2.0 * self.sigma2);
+            *h = threshold(kl, period / BANK_SHARE[i]) / self.tilt[i];
+        }
     }
 
     /// Sample k at time t; `lag(j)` = u(k - delay - j). Returns the alarm, if this sample raised one.
@@ -365,30 +387,46 @@ impl Detector {
         }
         let (b0, b1, _) = self.projection();
         let gt = g - b0 - b1 * h;
-        let r = cfg.wear_ratio;
+        let fired = (0..BANK.len())
+            .filter_map(|i| self.cusum(i, cfg.wear_ratio * BANK[i], gt, (e, h, g), (k, t)))
+            .next();
+        fired.map(|(i, eg, gg)| self.alarm(cfg, (k, t), i, eg / gg, gg))
+    }
+
+    /// CUSUM `i` of the bank, tuned to the growth `r`, on a sample with the projected play direction `gt`
+    /// and (e, h, g); when it alarms (S >= H and the window's GLR >= H): its window's (e' . g', g' . g').
+    fn cusum(
+        &mut self,
+        i: usize,
+        r: f64,
+        gt: f64,
+        (e, h, g): (f64, f64, f64),
+        (k, t): (u64, f64),
+    ) -> Option<(usize, f64, f64)> {
         let z = r * gt * (2.0 * e - r * gt) / (2.0 * self.sigma2);
+        let (stat, window) = (&mut self.stat[i], &mut self.window[i]);
         if !z.is_finite() {
             return None;
         }
-        if self.stat + z <= 0.0 {
-            self.restart();
+        if *stat + z <= 0.0 {
+            (*stat, *window) = (0.0, Window::default());
             return None;
         }
-        if self.stat == 0.0 {
-            (self.window.start, self.window.start_time) = (k, t);
+        if *stat == 0.0 {
+            (window.start, window.start_time) = (k, t);
         }
-        self.stat += z;
-        self.window.add(e, h, g);
-        if self.stat < self.threshold {
+        *stat += z;
+        window.add(e, h, g);
+        if *stat < self.threshold[i] {
             return None;
         }
-        let (eg, gg) = self.window.projected();
+        let (eg, gg) = window.projected();
         let glr = if eg > 0.0 && gg > 0.0 {
             eg * eg / (2.0 * self.sigma2 * gg)
         } else {
             0.0
         };
-        (glr >= self.threshold).then(|| self.alarm(cfg, k, t, eg / gg, gg))
+        (glr >= self.threshold[i]).then_some((i, eg, gg))
     }
 
     /// The tracker's update with the residual `e` and sensitivity `h` of this sample (after the test used
@@ -402,15 +440,22 @@ impl Detector {
         }
     }
 
-    /// The alarm at sample k with the window's growth `rho` and information `gg`, then the restart (and
-    /// re-reference with `follow`).
-    fn alarm(&mut self, cfg: &MonitorConfig, k: u64, t: f64, rho: f64, gg: f64) -> Alarm {
+    /// The alarm at sample k raised by CUSUM `i` with its window's growth `rho` and information `gg`, then
+    /// the restart of the bank (and re-reference with `follow`).
+    fn alarm(
+        &mut self,
+        cfg: &MonitorConfig,
+        (k, t): (u64, f64),
+        i: usize,
+        rho: f64,
+        gg: f64,
+    ) -> Alarm {
         let se = (self.sigma2 / gg).sqrt();
         let alarm = Alarm {
             sample: k,
             time: t,
-            onset_sample: self.window.start,
-            onset: self.window.start_time,
+            onset_sample: self.window[i].start,
+            onset: self.window[i].start_time,
             play_before: self.play,
             play_before_se: self.play_se,
             play_after: self.play * (1.0 + rho),
@@ -582,7 +627,7 @@ impl Monitor {
         let inflate = 1.0 + 2.0 * (2.0 / n).sqrt();
         let sigma2 = (rec.noise_variance() * inflate).max(floor);
         let rel = if play > 0.0 { play_se / play } else { 0.0 };
-        let tilt = (1.0 - 4.0 * rel / self.cfg.wear_ratio).max(MIN_TILT);
+        let tilt = BANK.map(|m| (1.0 - 4.0 * rel / (m * self.cfg.wear_ratio)).max(MIN_TILT));
         let mut d = Detector {
             reference: theta,
             theta,
@@ -602,9 +647,9 @@ impl Monitor {
             sg: 0.0,
             shg: 0.0,
             sgg: 0.0,
-            threshold: f64::INFINITY,
-            stat: 0.0,
-            window: Window::default(),
+            threshold: [f64::INFINITY; BANK.len()],
+            stat: [0.0; BANK.len()],
+            window: [Window::default(); BANK.len()],
         };
         d.reset_moments();
         Some(d)
@@ -625,19 +670,24 @@ impl Monitor {
         }
     }
 
-    /// The CUSUM statistic divided by its threshold: an alarm comes when it reaches 1 (0 while learning).
+    /// The largest of the bank's CUSUM statistics, each divided by its threshold: an alarm can come when it
+    /// reaches 1 (0 while learning).
     pub fn statistic(&self) -> f64 {
-        match &self.det {
-            Some(d) if d.threshold.is_finite() && d.threshold > 0.0 => d.stat / d.threshold,
-            _ => 0.0,
-        }
+        let Some(d) = &self.det else { return 0.0 };
+        d.stat
+            .iter()
+            .zip(&d.threshold)
+            .filter(|(_, h)| h.is_finite() && **h > 0.0)
+            .map(|(s, h)| s / h)
+            .fold(0.0, f64::max)
     }
 
-    /// The threshold H in log-likelihood units (None while learning or before the test runs).
+    /// The threshold H in log-likelihood units of the CUSUM tuned to `wear_ratio` (None while learning or
+    /// before the test runs).
     pub fn threshold(&self) -> Option<f64> {
         self.det
             .as_ref()
-            .map(|d| d.threshold)
+            .map(|d| d.threshold[0])
             .filter(|h| h.is_finite())
     }
 
@@ -669,24 +719,24 @@ impl Monitor {
             d.sigma2,
             d.play,
             d.play_se,
-            d.tilt,
             d.sh,
             d.shh,
             d.sg,
             d.shg,
             d.sgg,
-            d.stat,
             d.nuisance.offset,
             d.nuisance.log_gain,
         ];
         let ok = vals
             .iter()
-            .chain(&d.window.sums)
+            .chain(d.window.iter().flat_map(|w| &w.sums))
+            .chain(&d.stat)
+            .chain(&d.tilt)
             .chain(&d.nuisance.info)
             .all(|v| v.is_finite())
             && d.sigma2 > 0.0
-            && d.stat >= 0.0
-            && d.tilt > 0.0
+            && d.stat.iter().all(|s| *s >= 0.0)
+            && d.tilt.iter().all(|t| *t > 0.0)
             && d.sim.pos < 4
             && d.theta
                 .v

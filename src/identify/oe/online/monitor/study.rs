@@ -6,7 +6,7 @@
 //! with white Gaussian noise of standard deviation `std(w) / snr` (w the noise-free output of 20000 samples
 //! of the unchanged plant, as in the other studies). The change acts from sample `at` on.
 
-use super::{Alarm, Monitor, MonitorConfig, play_of};
+use super::{Alarm, Monitor, MonitorConfig, Window, play_of};
 use crate::identify::mrgia::{MrgiaConfig, PAPER_INPUT_VARIANCE};
 use crate::identify::oe::online::{RING, Refined};
 use crate::plant::{BacklashParams, Plant, PlantParams};
@@ -435,4 +435,59 @@ pub fn rule_delay(
         }
     }
     None
+}
+
+/// The information as it arrives, for a change at sample `at` of record `seed`: the samples after the change
+/// until the expected log-likelihood ratio of an oracle that knows the plant, the change and its time reaches
+/// `ln(period)`, i.e. the first n with `sum_{at <= k <= at + n} d(k)^2 / (2 sigma^2) >= ln(period)`, d = w1 - w0
+/// the difference of the noise-free outputs with and without `change` (a play change shows in the output
+/// only once the backlash is engaged again after it). Two such delays: with the offset and the linear gain
+/// known (d as it is), and with an offset and a gain change allowed at the change time (d' the residual of d
+/// after least squares on (1, h) over the samples since the change, h the output's sensitivity to the log of
+/// the linear block's gain): what a detector that must not call an offset or a gain change play can use. A
+/// play step looks like an offset step as long as the backlash stays engaged on one side, so the second
+/// waits for a reversal. None if not reached within `horizon` samples.
+pub fn arrival_delays(
+    plant: PlantParams,
+    sigma: f64,
+    seed: u64,
+    change: Change,
+    at: u64,
+    (period, horizon): (f64, u64),
+) -> (Option<u64>, Option<u64>) {
+    /// Relative gain change of the finite difference for h.
+    const EPS: f64 = 1e-6;
+    let mut changed = Scenario::new(plant, 0.0, seed, change);
+    let mut same = Scenario::new(plant, 0.0, seed, Change::None);
+    let gain = Change::LinearGain {
+        at: 0,
+        factor: 1.0 + EPS,
+    };
+    let mut scaled = Scenario::new(plant, 0.0, seed, gain);
+    let (ln_p, two_s2) = (period.ln(), 2.0 * sigma * sigma);
+    let (mut known, mut efficient) = (None, None);
+    let (mut llr, mut window) = (0.0, Window::default());
+    for k in 0..at + horizon {
+        let (w1, w0, wg) = (
+            changed.next_sample().1,
+            same.next_sample().1,
+            scaled.next_sample().1,
+        );
+        if k < at {
+            continue;
+        }
+        let d = w1 - w0;
+        llr += d * d / two_s2;
+        window.add(d, (wg - w0) / EPS, d);
+        if known.is_none() && llr >= ln_p {
+            known = Some(k - at);
+        }
+        if efficient.is_none() && window.projected().1 / two_s2 >= ln_p {
+            efficient = Some(k - at);
+        }
+        if efficient.is_some() && known.is_some() {
+            break;
+        }
+    }
+    (known, efficient)
 }

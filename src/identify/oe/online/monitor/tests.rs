@@ -248,6 +248,38 @@ fn learning_and_serde_state_round_trip() {
         d.sigma2 = -1.0;
     }
     assert!(bad.check().is_err());
+    // Every CUSUM of the bank is part of the state that is checked.
+    let mut bad = back.clone();
+    bad.det.as_mut().unwrap().stat[BANK.len() - 1] = -1.0;
+    assert!(bad.check().is_err());
+    let mut bad = back;
+    bad.det.as_mut().unwrap().window[1].sums[0] = f64::NAN;
+    assert!(bad.check().is_err());
+}
+
+/// The bank spends the false-alarm rate `1 / period` in shares that add up to it: each CUSUM's threshold is
+/// the one of a lone CUSUM at the period over its share, higher than at the period itself.
+#[test]
+fn the_bank_shares_the_false_alarm_rate() {
+    assert!((BANK_SHARE.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+    let plant = PlantParams::PAPER;
+    let mut run = Run::new(plant, noise_std(plant, 20.0), 3, Change::None, cfg(1e4));
+    alarms(&mut run, 3000);
+    let mut d = run.mon.det.clone().expect("testing");
+    // The thresholds from the moments as they are now (they are refreshed every REFRESH samples).
+    d.refresh_threshold(0.1, 1e4);
+    let var = d.projection().2;
+    for i in 0..BANK.len() {
+        let kl = (BANK[i] * 0.1).powi(2) * var / (2.0 * d.sigma2);
+        let own = threshold(kl, 1e4 / BANK_SHARE[i]) / d.tilt[i];
+        assert!((d.threshold[i] / own - 1.0).abs() < 1e-9, "{i}: {d:?}");
+        assert!(d.threshold[i] > threshold(kl, 1e4) / d.tilt[i]);
+    }
+    assert!(
+        run.mon
+            .threshold()
+            .is_some_and(|h| (h / d.threshold[0] - 1.0).abs() < 0.05)
+    );
 }
 
 /// A 10% increase of the linear block's gain at period 1e4: the tracker follows the gain (log gain near
