@@ -12,6 +12,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use super::common::{RecordArgs, bar, print_json, print_warnings};
+use super::structure::OrderArgs;
 
 /// Files larger than this (about 200,000 rows) show a progress bar (when not in --json mode).
 const PROGRESS_MIN_BYTES: u64 = 5_000_000;
@@ -22,15 +23,8 @@ pub struct MrgiaArgs {
     pub file: PathBuf,
     #[command(flatten)]
     pub record: RecordArgs,
-    /// Number of a coefficients (0 to 4).
-    #[arg(long)]
-    pub na: usize,
-    /// Highest b index (0 to 4): b0..b_nb are estimated.
-    #[arg(long)]
-    pub nb: usize,
-    /// Input delay in samples (1 to 64).
-    #[arg(long)]
-    pub delay: usize,
+    #[command(flatten)]
+    pub orders: OrderArgs,
     /// Use the project's recommended on-line setting instead of the paper's (see docs/INTERFACE.md).
     #[arg(long)]
     pub recommended: bool,
@@ -172,7 +166,7 @@ struct Pass {
 impl Pass {
     fn new(args: &MrgiaArgs, settings: &MrgiaSettings) -> Result<Self> {
         let cfg = settings
-            .config(args.na, args.nb, args.delay)
+            .config(args.orders.na, args.orders.nb, args.orders.delay)
             .context("invalid estimator setting")?;
         let labels = param_names(cfg.na, cfg.nb);
         let trace = match &args.trace {

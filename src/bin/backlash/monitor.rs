@@ -2,6 +2,7 @@
 
 use super::common::RecordArgs;
 use super::identify::Decimated;
+use super::structure::OrderArgs;
 use anyhow::{Context, Result};
 use backlash::api::{InputCheck, monitor_json};
 use backlash::identify::mrgia::MrgiaConfig;
@@ -15,15 +16,8 @@ use std::path::PathBuf;
 pub struct MonitorArgs {
     /// Data file: CSV with columns time,u,y (any order; other columns ignored).
     pub file: PathBuf,
-    /// Number of a coefficients (0 to 4).
-    #[arg(long)]
-    pub na: usize,
-    /// Highest b index (0 to 4): b0..b_nb are estimated.
-    #[arg(long)]
-    pub nb: usize,
-    /// Input delay in samples (1 to 64).
-    #[arg(long)]
-    pub delay: usize,
+    #[command(flatten)]
+    pub orders: OrderArgs,
     /// Relative growth of the play c1 + c2 to detect (0.1: 10%).
     #[arg(long, default_value_t = 0.1)]
     pub wear_ratio: f64,
@@ -71,7 +65,7 @@ pub fn run(args: &MonitorArgs) -> Result<()> {
         reference_play: args.reference_play,
         follow: true,
     };
-    let (na, nb, d) = (args.na, args.nb, args.delay);
+    let (na, nb, d) = (args.orders.na, args.orders.nb, args.orders.delay);
     let est = if args.recommended {
         MrgiaConfig::recommended(na, nb, d)
     } else {

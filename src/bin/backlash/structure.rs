@@ -1,8 +1,23 @@
-//! The model-structure options that `diagnose` and `identify oe` share.
+//! The model-structure options: declared or chosen (`diagnose`, `identify oe`), or declared only (the on-line
+//! estimator's commands, `identify mrgia` and `monitor`).
 
 use anyhow::{Result, bail};
 use backlash::diagnose::structure::Structure;
 use backlash::plant::MAX_DELAY;
+
+/// The structure the on-line estimator runs with: all three of `--na`, `--nb` and `--delay`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct OrderArgs {
+    /// Number of a coefficients (0 to 4).
+    #[arg(long)]
+    pub na: usize,
+    /// Highest b index (0 to 4): b0..b_nb are estimated.
+    #[arg(long)]
+    pub nb: usize,
+    /// Input delay in samples (1 to 64).
+    #[arg(long)]
+    pub delay: usize,
+}
 
 /// Declared with all three of `--na`, `--nb` and `--delay`, or chosen from the data.
 #[derive(clap::Args, Debug, Clone)]
