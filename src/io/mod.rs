@@ -185,6 +185,9 @@ struct RowChecker {
     has_prev: bool,
     /// Byte ranges of the fields of the current line (reused).
     spans: Vec<(usize, usize)>,
+    /// For each header column, the row position it fills if it is required (see [`RowChecker::check_plain`]);
+    /// empty when a column is required twice, which leaves every line to [`RowChecker::check`].
+    slots: Vec<Option<usize>>,
 }
 
 impl RowChecker {
@@ -240,6 +243,7 @@ impl RowChecker {
         Ok(RowChecker {
             file,
             spans: Vec::with_capacity(header.len() + 1),
+            slots: slots(header.len(), &idx),
             header,
             idx,
             is_time,
@@ -247,6 +251,53 @@ impl RowChecker {
             prev: vec![0.0; required.len()],
             has_prev: false,
         })
+    }
+
+    /// The common line read quickly: ASCII, the header's number of fields, each required field a finite number
+    /// spelled without spaces, times increasing. Then its required columns are in `row` and the line is
+    /// accepted (`true`), exactly as [`RowChecker::check`] would accept it with the same values (a field
+    /// `fast-float2` reads to its end is one that [`parse_number`] reads to the same value). Any other line
+    /// gives `false`, and the caller hands it to `check`, which decides and says why.
+    fn check_plain(&mut self, line: &[u8], row: &mut [f64]) -> bool {
+        if self.slots.is_empty() || !line.is_ascii() {
+            return false;
+        }
+        let mut pos = 0;
+        for (p, slot) in self.slots.iter().enumerate() {
+            if p > 0 {
+                if line.get(pos) != Some(&b',') {
+                    return false;
+                }
+                pos += 1;
+            }
+            let rest = &line[pos..];
+            pos += match slot {
+                Some(c) => match fast_float2::parse_partial::<f64, _>(rest) {
+                    Ok((v, n)) if v.is_finite() => {
+                        row[*c] = v;
+                        n
+                    }
+                    _ => return false,
+                },
+                None => rest.iter().position(|&b| b == b',').unwrap_or(rest.len()),
+            };
+        }
+        if pos != line.len() || !self.times_increase(row) {
+            return false;
+        }
+        self.prev.copy_from_slice(row);
+        self.has_prev = true;
+        true
+    }
+
+    /// Whether every time column of `row` is above the previous row's.
+    fn times_increase(&self, row: &[f64]) -> bool {
+        !self.has_prev
+            || self
+                .is_time
+                .iter()
+                .zip(row.iter().zip(&self.prev))
+                .all(|(&t, (v, p))| !t || v > p)
     }
 
     /// Check data line `line_no` (non-blank, line end removed) and put the required columns into `row`.
@@ -411,6 +462,9 @@ impl<R: BufRead> RowReader<R> {
     /// are skipped. A file without any data row is an error ([`CsvError::NoRows`]), reported at its end.
     pub fn next_row(&mut self) -> Result<Option<&[f64]>, CsvError> {
         while !self.done {
+            if self.next_plain()? {
+                return Ok(Some(&self.row));
+            }
             if !self.read_line()? {
                 self.done = true;
                 if self.rows == 0 {
@@ -455,6 +509,31 @@ impl<R: BufRead> RowReader<R> {
     /// Data rows returned so far.
     pub fn rows(&self) -> u64 {
         self.rows
+    }
+
+    /// The next line taken where it lies in the reader's buffer, when it is whole there and the quick path
+    /// accepts it ([`RowChecker::check_plain`]): then it is consumed and `row` holds it (`true`). Otherwise
+    /// nothing is consumed and [`RowReader::read_line`] reads the same line the general way.
+    fn next_plain(&mut self) -> Result<bool, CsvError> {
+        let buffered = self.reader.fill_buf().map_err(|source| CsvError::Io {
+            file: self.checker.file.clone(),
+            source,
+        })?;
+        // A line within the length limit, line end included (as `read_line` takes it).
+        let within = &buffered[..buffered.len().min(MAX_LINE_BYTES)];
+        let Some(end) = memchr::memchr(b'\n', within) else {
+            return Ok(false);
+        };
+        let line = &within[..end];
+        let line = line.strip_suffix(b"\r").unwrap_or(line);
+        if !self.checker.check_plain(line, &mut self.row) {
+            return Ok(false);
+        }
+        self.reader.consume(end + 1);
+        self.line += 1;
+        self.bytes += end as u64 + 1;
+        self.rows += 1;
+        Ok(true)
     }
 
     /// Read the next line into `buf` without its line end; false at the end of the input.
@@ -629,6 +708,18 @@ impl Drop for ReadAhead {
             let _ = t.join();
         }
     }
+}
+
+/// For each of `columns` header columns, the row position of the required column it is (`idx` gives the
+/// header column of each row position); empty if `idx` names a column twice.
+fn slots(columns: usize, idx: &[usize]) -> Vec<Option<usize>> {
+    let mut slots = vec![None; columns];
+    for (c, &i) in idx.iter().enumerate() {
+        if slots[i].replace(c).is_some() {
+            return Vec::new();
+        }
+    }
+    slots
 }
 
 /// `bytes` as UTF-8, or an error naming the line and the byte.
@@ -885,6 +976,53 @@ mod tests {
             }
             same(&format!("{}", rng.next_u64() % 100_000));
         }
+    }
+
+    /// Every line the quick path takes, the full checker accepts with the same values bit for bit, whatever
+    /// the fields (numbers, spaces, infinities, non-ASCII text, missing or extra fields) and the column order;
+    /// a time that does not increase is left to the checker.
+    #[test]
+    fn the_quick_path_takes_only_lines_the_checker_accepts_with_the_same_values() {
+        let fields = [
+            "0", "1.5", "-.5", "+1", "1e-3", "1e309", "nan", "-inf", " 2", "2 ", "", "x", "1e",
+            "1,5", "\u{661}", "0x10",
+        ];
+        let mut taken = 0;
+        for header in ["time,extra,u,y", "y,u,extra,time"] {
+            for (a, b, extra) in fields.iter().flat_map(|a| {
+                fields
+                    .iter()
+                    .flat_map(move |b| ["z", "", "é", "1,2"].map(move |e| (a, b, e)))
+            }) {
+                let line = format!("{a},{extra},{b},0.25");
+                let checker = || {
+                    RowChecker::new("f".into(), header, &["time", "u", "y"], TimeColumn::ByName)
+                        .unwrap()
+                };
+                let (mut quick, mut full) = (checker(), checker());
+                let (mut r1, mut r2) = ([0.0; 3], [0.0; 3]);
+                if quick.check_plain(line.as_bytes(), &mut r1) {
+                    taken += 1;
+                    assert!(full.check(2, &line, &mut r2).is_ok(), "{line:?}");
+                    assert_eq!(r1.map(f64::to_bits), r2.map(f64::to_bits), "{line:?}");
+                }
+            }
+        }
+        assert!(taken >= 2 * 5 * 5, "the quick path took {taken} lines");
+        let mut c = RowChecker::new(
+            "f".into(),
+            "time,u,y",
+            &["time", "u", "y"],
+            TimeColumn::ByName,
+        )
+        .unwrap();
+        let mut row = [0.0; 3];
+        assert!(c.check_plain(b"1,2,3", &mut row));
+        assert!(
+            !c.check_plain(b"1,2,3", &mut row),
+            "a repeated time is the checker's to refuse"
+        );
+        assert!(c.check_plain(b"1.5,2,3", &mut row));
     }
 
     #[test]
