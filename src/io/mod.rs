@@ -14,8 +14,14 @@
 //! increase is said by a [`TimeColumn`]: by default the one named `time` or `t`.
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, BufWriter, Read, Write};
+use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
+
+mod atomic;
+mod read_ahead;
+
+pub use atomic::{AtomicFile, write_atomic};
+pub use read_ahead::{Batch, READ_AHEAD_ROWS, ReadAhead};
 
 /// The longest line accepted, in bytes (line end included): the reader's buffer never grows beyond it, so a
 /// file without line ends cannot exhaust memory.
@@ -569,147 +575,6 @@ impl<R: BufRead> RowReader<R> {
     }
 }
 
-/// Rows per batch of [`ReadAhead`]: large enough that the channel costs nothing per row, small enough that
-/// the batches in flight (at most four) stay under a megabyte.
-pub const READ_AHEAD_ROWS: usize = 8192;
-
-/// One batch of rows from [`ReadAhead`]: the required columns of each row, row after row.
-#[derive(Debug, Default)]
-pub struct Batch {
-    /// `width` values per row, in the order asked for.
-    pub values: Vec<f64>,
-    /// Bytes of the file consumed up to the end of this batch (for progress reports).
-    pub bytes_read: u64,
-}
-
-enum Msg {
-    Rows(Batch),
-    Done { rows: u64 },
-    Failed(CsvError),
-}
-
-/// A [`RowReader`] running on its own thread, one batch ahead: the file is read, checked and parsed on one
-/// core while the caller computes on another. Same rows, same checks and the same first error as the
-/// reader alone, in memory bounded by four batches whatever the file's length (batches are recycled).
-pub struct ReadAhead {
-    file: PathBuf,
-    width: usize,
-    rx: Option<std::sync::mpsc::Receiver<Msg>>,
-    recycle: std::sync::mpsc::Sender<Batch>,
-    thread: Option<std::thread::JoinHandle<()>>,
-    rows: Option<u64>,
-}
-
-impl ReadAhead {
-    /// Start reading `reader`'s rows on a new thread.
-    pub fn spawn<R: BufRead + Send + 'static>(mut reader: RowReader<R>) -> ReadAhead {
-        let width = reader.row.len();
-        let file = reader.checker.file.clone();
-        let (tx, rx) = std::sync::mpsc::sync_channel::<Msg>(2);
-        let (recycle, spare) = std::sync::mpsc::channel::<Batch>();
-        let thread = std::thread::spawn(move || {
-            loop {
-                let mut batch = spare.try_recv().unwrap_or_else(|_| Batch {
-                    values: Vec::with_capacity(READ_AHEAD_ROWS * width),
-                    bytes_read: 0,
-                });
-                batch.values.clear();
-                let mut end = false;
-                while batch.values.len() < READ_AHEAD_ROWS * width {
-                    match reader.next_row() {
-                        Ok(Some(row)) => batch.values.extend_from_slice(row),
-                        Ok(None) => {
-                            end = true;
-                            break;
-                        }
-                        Err(e) => {
-                            // The rows before the error first, as the reader alone would give them.
-                            if !batch.values.is_empty() {
-                                batch.bytes_read = reader.bytes_read();
-                                if tx.send(Msg::Rows(batch)).is_err() {
-                                    return;
-                                }
-                            }
-                            let _ = tx.send(Msg::Failed(e));
-                            return;
-                        }
-                    }
-                }
-                batch.bytes_read = reader.bytes_read();
-                if !batch.values.is_empty() && tx.send(Msg::Rows(batch)).is_err() {
-                    // The consumer has gone (it stopped on an error of its own).
-                    return;
-                }
-                if end {
-                    let _ = tx.send(Msg::Done {
-                        rows: reader.rows(),
-                    });
-                    return;
-                }
-            }
-        });
-        ReadAhead {
-            file,
-            width,
-            rx: Some(rx),
-            recycle,
-            thread: Some(thread),
-            rows: None,
-        }
-    }
-
-    /// Values per row.
-    pub fn width(&self) -> usize {
-        self.width
-    }
-
-    /// The next batch, `None` after the last one; the reader's error where it met one.
-    pub fn next_batch(&mut self) -> Result<Option<Batch>, CsvError> {
-        let Some(rx) = &self.rx else {
-            return Ok(None);
-        };
-        match rx.recv() {
-            Ok(Msg::Rows(b)) => Ok(Some(b)),
-            Ok(Msg::Done { rows }) => {
-                self.rows = Some(rows);
-                self.rx = None;
-                Ok(None)
-            }
-            Ok(Msg::Failed(e)) => {
-                self.rx = None;
-                Err(e)
-            }
-            Err(_) => {
-                self.rx = None;
-                Err(CsvError::Io {
-                    file: self.file.clone(),
-                    source: std::io::Error::other("the reading thread stopped without a result"),
-                })
-            }
-        }
-    }
-
-    /// Give a batch back for reuse (optional: without it the reader allocates a new one).
-    pub fn recycle(&self, batch: Batch) {
-        let _ = self.recycle.send(batch);
-    }
-
-    /// Data rows read, once [`ReadAhead::next_batch`] has returned `None`.
-    pub fn rows(&self) -> Option<u64> {
-        self.rows
-    }
-}
-
-impl Drop for ReadAhead {
-    fn drop(&mut self) {
-        // Closing the channel ends the thread at its next send; then wait for it.
-        self.rx = None;
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
 /// For each of `columns` header columns, the row position of the required column it is (`idx` gives the
 /// header column of each row position); empty if `idx` names a column twice.
 fn slots(columns: usize, idx: &[usize]) -> Vec<Option<usize>> {
@@ -788,85 +653,6 @@ impl Table {
     pub fn rows(&self) -> usize {
         self.columns.first().map_or(0, Vec::len)
     }
-}
-
-/// A file written atomically: the content goes to a temporary file beside the target, which
-/// [`AtomicFile::commit`] renames over the target once everything was written. Dropped without a commit (an
-/// error on the way), it removes the temporary file: a failed run leaves no half-written result, and an
-/// existing target untouched.
-#[derive(Debug)]
-pub struct AtomicFile {
-    target: PathBuf,
-    tmp: PathBuf,
-    out: Option<BufWriter<File>>,
-}
-
-impl AtomicFile {
-    /// Create the temporary file `.NAME.tmpPID` in the target's folder.
-    pub fn create(path: &Path) -> std::io::Result<AtomicFile> {
-        let dir = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "out".into());
-        let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-        let f = File::create(&tmp)?;
-        Ok(AtomicFile {
-            target: path.to_path_buf(),
-            tmp,
-            out: Some(BufWriter::with_capacity(READ_BUFFER_BYTES, f)),
-        })
-    }
-
-    /// Flush, sync and rename over the target. On failure the temporary file is removed.
-    pub fn commit(mut self) -> std::io::Result<()> {
-        let out = self.out.take().expect("not yet committed");
-        out.into_inner().map_err(|e| e.into_error())?.sync_all()?;
-        std::fs::rename(&self.tmp, &self.target)?;
-        // Renamed: nothing left for Drop to remove.
-        self.tmp = PathBuf::new();
-        Ok(())
-    }
-
-    fn out(&mut self) -> &mut BufWriter<File> {
-        self.out.as_mut().expect("not yet committed")
-    }
-}
-
-impl Write for AtomicFile {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.out().write(buf)
-    }
-    fn write_all(&mut self, buf: &[u8]) -> std::io::Result<()> {
-        self.out().write_all(buf)
-    }
-    fn flush(&mut self) -> std::io::Result<()> {
-        self.out().flush()
-    }
-}
-
-impl Drop for AtomicFile {
-    fn drop(&mut self) {
-        if !self.tmp.as_os_str().is_empty() {
-            // Close before removing.
-            drop(self.out.take());
-            let _ = std::fs::remove_file(&self.tmp);
-        }
-    }
-}
-
-/// Write a file atomically (see [`AtomicFile`]): `write` fills it, and the target appears only if `write`
-/// and the rename succeed.
-pub fn write_atomic(
-    path: &Path,
-    write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
-) -> std::io::Result<()> {
-    let mut f = AtomicFile::create(path)?;
-    write(&mut f)?;
-    f.commit()
 }
 
 #[cfg(test)]
@@ -1277,42 +1063,5 @@ mod tests {
         // Header only: NoRows at the end, as the table.
         let mut r = RowReader::new(&b"time,u,y\n\n"[..], Path::new("data.csv"), &["time"]).unwrap();
         assert!(matches!(r.next_row(), Err(CsvError::NoRows { .. })));
-    }
-
-    #[test]
-    fn atomic_write_leaves_nothing_on_failure() {
-        let dir = std::env::temp_dir().join(format!("backlash-io-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let target = dir.join("out.csv");
-        write_atomic(&target, |w| w.write_all(b"ok\n")).unwrap();
-        assert_eq!(std::fs::read_to_string(&target).unwrap(), "ok\n");
-        let err = write_atomic(&target, |w| {
-            w.write_all(b"partial")?;
-            Err(std::io::Error::other("boom"))
-        });
-        assert!(err.is_err());
-        assert_eq!(std::fs::read_to_string(&target).unwrap(), "ok\n");
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
-        // AtomicFile: dropped without a commit, it leaves the target as it was and no temporary file.
-        let mut f = AtomicFile::create(&target).unwrap();
-        f.write_all(b"new\n").unwrap();
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
-        drop(f);
-        assert_eq!(std::fs::read_to_string(&target).unwrap(), "ok\n");
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
-        let mut f = AtomicFile::create(&target).unwrap();
-        f.write_all(b"new\n").unwrap();
-        f.commit().unwrap();
-        assert_eq!(std::fs::read_to_string(&target).unwrap(), "new\n");
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
-        // A commit that cannot rename (the target is a non-empty folder) removes the temporary file.
-        let sub = dir.join("sub");
-        std::fs::create_dir(&sub).unwrap();
-        std::fs::write(sub.join("keep"), b"x").unwrap();
-        let mut f = AtomicFile::create(&sub).unwrap();
-        f.write_all(b"new\n").unwrap();
-        assert!(f.commit().is_err());
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
