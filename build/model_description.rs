@@ -162,7 +162,30 @@ fn type_of(v: &ScalarVariable) -> Result<(&'static str, &TypeAttrs), String> {
     }
 }
 
+/// The description's checks: its header, every variable, and the model structure.
 fn check(stem: &str, md: &ModelDescription) -> Result<(), String> {
+    check_header(stem, md)?;
+    let mut names = HashSet::new();
+    let mut vrs = HashSet::new();
+    for v in &md.model_variables.variables {
+        let (ty, attrs) = type_of(v)?;
+        let at = |what: &str| format!("variable '{}': {what}", v.name);
+        if !names.insert(v.name.as_str()) {
+            return Err(at("name appears twice"));
+        }
+        if !vrs.insert((ty, v.value_reference)) {
+            return Err(at(&format!(
+                "valueReference {} is used twice for {ty}",
+                v.value_reference
+            )));
+        }
+        check_variable(v, ty, attrs).map_err(|what| at(&what))?;
+    }
+    check_structure(md)
+}
+
+/// The version, the names, the GUID, the FMU-state flags and the log categories the FMI layer needs.
+fn check_header(stem: &str, md: &ModelDescription) -> Result<(), String> {
     if md.fmi_version != "2.0" {
         return Err(format!(
             "fmiVersion is '{}', expected '2.0'",
@@ -208,106 +231,98 @@ fn check(stem: &str, md: &ModelDescription) -> Result<(), String> {
             ));
         }
     }
+    Ok(())
+}
 
-    let vars = &md.model_variables.variables;
-    let mut names = HashSet::new();
-    let mut vrs = HashSet::new();
-    for v in vars {
-        let (ty, attrs) = type_of(v)?;
-        let at = |what: &str| format!("variable '{}': {what}", v.name);
-        if !v
-            .name
-            .chars()
-            .next()
-            .is_some_and(|c| c.is_ascii_alphabetic())
-            || !v
-                .name
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '_')
-        {
-            return Err(at("name must be a flat identifier"));
-        }
-        if !names.insert(v.name.as_str()) {
-            return Err(at("name appears twice"));
-        }
-        if !vrs.insert((ty, v.value_reference)) {
-            return Err(at(&format!(
-                "valueReference {} is used twice for {ty}",
-                v.value_reference
-            )));
-        }
-        if v.description.as_deref().is_none_or(str::is_empty) {
-            return Err(at("needs a description"));
-        }
-        let causality = v.causality.as_deref().unwrap_or("local");
-        let variability = v.variability.as_deref().unwrap_or("continuous");
-        match (causality, variability) {
-            ("parameter", "fixed" | "tunable") => {
-                if v.initial.as_deref() != Some("exact") || attrs.start.is_none() {
-                    return Err(at("a parameter needs initial=\"exact\" and a start value"));
-                }
-            }
-            ("input", "discrete" | "continuous") => {
-                if attrs.start.is_none() {
-                    return Err(at("an input needs a start value"));
-                }
-            }
-            ("output", "discrete" | "continuous") => {
-                if v.initial.as_deref() != Some("calculated") || attrs.start.is_some() {
-                    return Err(at(
-                        "outputs are computed by the model: initial=\"calculated\" and no start",
-                    ));
-                }
-            }
-            _ => {
-                return Err(at(&format!(
-                    "causality '{causality}' with variability '{variability}' is not supported"
-                )));
+/// One variable on its own: a flat name, a description, a supported causality and variability with the
+/// `initial` and start they need, a unit for a Real, numbers within their bounds. The error says what is wrong
+/// (the caller names the variable).
+fn check_variable(v: &ScalarVariable, ty: &str, attrs: &TypeAttrs) -> Result<(), String> {
+    let mut chars = v.name.chars();
+    let flat = chars.next().is_some_and(|c| c.is_ascii_alphabetic())
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if !flat {
+        return Err("name must be a flat identifier".into());
+    }
+    if v.description.as_deref().is_none_or(str::is_empty) {
+        return Err("needs a description".into());
+    }
+    let causality = v.causality.as_deref().unwrap_or("local");
+    let variability = v.variability.as_deref().unwrap_or("continuous");
+    match (causality, variability) {
+        ("parameter", "fixed" | "tunable") => {
+            if v.initial.as_deref() != Some("exact") || attrs.start.is_none() {
+                return Err("a parameter needs initial=\"exact\" and a start value".into());
             }
         }
-        if ty == "Real" && attrs.unit.is_none() {
-            return Err(at("a Real needs a unit"));
-        }
-        if ty == "Real" && variability == "discrete" && causality == "input" {
-            // fine: discrete-time plant and estimator
-        }
-        let num = |s: &Option<String>, what: &str| -> Result<Option<f64>, String> {
-            s.as_deref()
-                .map(|t| {
-                    t.parse::<f64>()
-                        .map_err(|_| at(&format!("{what} '{t}' is not a number")))
-                })
-                .transpose()
-        };
-        if ty == "Real" || ty == "Integer" {
-            let (start, min, max) = (
-                num(&attrs.start, "start")?,
-                num(&attrs.min, "min")?,
-                num(&attrs.max, "max")?,
-            );
-            if let (Some(lo), Some(hi)) = (min, max)
-                && lo > hi
-            {
-                return Err(at("min > max"));
-            }
-            if let Some(s) = start
-                && (min.is_some_and(|lo| s < lo) || max.is_some_and(|hi| s > hi))
-            {
-                return Err(at("start is outside [min, max]"));
+        ("input", "discrete" | "continuous") => {
+            if attrs.start.is_none() {
+                return Err("an input needs a start value".into());
             }
         }
-        if ty == "Boolean"
-            && let Some(s) = &attrs.start
-            && s != "true"
-            && s != "false"
-        {
-            return Err(at("a Boolean start must be true or false"));
+        ("output", "discrete" | "continuous") => {
+            if v.initial.as_deref() != Some("calculated") || attrs.start.is_some() {
+                return Err(
+                    "outputs are computed by the model: initial=\"calculated\" and no start".into(),
+                );
+            }
+        }
+        _ => {
+            return Err(format!(
+                "causality '{causality}' with variability '{variability}' is not supported"
+            ));
         }
     }
+    if ty == "Real" && attrs.unit.is_none() {
+        return Err("a Real needs a unit".into());
+    }
+    if ty == "Real" || ty == "Integer" {
+        check_bounds(attrs)?;
+    }
+    if ty == "Boolean"
+        && let Some(s) = &attrs.start
+        && s != "true"
+        && s != "false"
+    {
+        return Err("a Boolean start must be true or false".into());
+    }
+    Ok(())
+}
 
-    // ModelStructure: Outputs lists exactly the outputs in order; InitialUnknowns lists exactly the
-    // calculated outputs (there are no calculated parameters or states in these FMUs).
-    let outputs: Vec<usize> = vars
+/// A number's start, min and max are numbers, min <= max, and the start within them.
+fn check_bounds(attrs: &TypeAttrs) -> Result<(), String> {
+    let num = |s: &Option<String>, what: &str| -> Result<Option<f64>, String> {
+        s.as_deref()
+            .map(|t| {
+                t.parse::<f64>()
+                    .map_err(|_| format!("{what} '{t}' is not a number"))
+            })
+            .transpose()
+    };
+    let (start, min, max) = (
+        num(&attrs.start, "start")?,
+        num(&attrs.min, "min")?,
+        num(&attrs.max, "max")?,
+    );
+    if let (Some(lo), Some(hi)) = (min, max)
+        && lo > hi
+    {
+        return Err("min > max".into());
+    }
+    if let Some(s) = start
+        && (min.is_some_and(|lo| s < lo) || max.is_some_and(|hi| s > hi))
+    {
+        return Err("start is outside [min, max]".into());
+    }
+    Ok(())
+}
+
+/// ModelStructure: Outputs lists exactly the outputs in order; InitialUnknowns lists exactly the calculated
+/// outputs (there are no calculated parameters or states in these FMUs).
+fn check_structure(md: &ModelDescription) -> Result<(), String> {
+    let outputs: Vec<usize> = md
+        .model_variables
+        .variables
         .iter()
         .enumerate()
         .filter(|(_, v)| v.causality.as_deref() == Some("output"))
@@ -413,42 +428,45 @@ pub fn generate(module: &str, md: &ModelDescription) -> String {
     writeln!(s, "        ];\n    }}").unwrap();
     writeln!(s, "    pub const VARIABLES: [VarInfo; {}] = [", vars.len()).unwrap();
     for v in vars {
-        let (ty, a) = type_of(v).expect("checked");
-        let causality = match v.causality.as_deref().unwrap_or("local") {
-            "parameter" => "Parameter",
-            "input" => "Input",
-            "output" => "Output",
-            other => panic!("unsupported causality {other}"),
-        };
-        let variability = match v.variability.as_deref().unwrap_or("continuous") {
-            "fixed" => "Fixed",
-            "tunable" => "Tunable",
-            "discrete" => "Discrete",
-            "continuous" => "Continuous",
-            other => panic!("unsupported variability {other}"),
-        };
-        let start = match (ty, &a.start) {
-            (_, None) => "Start::None".to_string(),
-            ("Real", Some(x)) => format!("Start::Real({})", lit(x)),
-            ("Integer", Some(x)) => format!("Start::Integer({})", x.parse::<i32>().expect("int")),
-            ("Boolean", Some(x)) => format!("Start::Boolean({})", x == "true"),
-            (_, Some(x)) => format!("Start::String({x:?})"),
-        };
-        let opt = |o: &Option<String>| match o {
-            Some(x) => format!("Some({})", lit(x)),
-            None => "None".into(),
-        };
-        writeln!(
-            s,
-            "        VarInfo {{ name: {:?}, vr: {}, ty: VarType::{ty}, causality: Causality::{causality}, \
-             variability: Variability::{variability}, start: {start}, min: {}, max: {} }},",
-            v.name,
-            v.value_reference,
-            opt(&a.min),
-            opt(&a.max)
-        )
-        .unwrap();
+        writeln!(s, "        {},", var_info(v)).unwrap();
     }
     writeln!(s, "    ];\n}}").unwrap();
     s
+}
+
+/// The `VarInfo` literal of one (checked) variable.
+fn var_info(v: &ScalarVariable) -> String {
+    let (ty, a) = type_of(v).expect("checked");
+    let causality = match v.causality.as_deref().unwrap_or("local") {
+        "parameter" => "Parameter",
+        "input" => "Input",
+        "output" => "Output",
+        other => panic!("unsupported causality {other}"),
+    };
+    let variability = match v.variability.as_deref().unwrap_or("continuous") {
+        "fixed" => "Fixed",
+        "tunable" => "Tunable",
+        "discrete" => "Discrete",
+        "continuous" => "Continuous",
+        other => panic!("unsupported variability {other}"),
+    };
+    let start = match (ty, &a.start) {
+        (_, None) => "Start::None".to_string(),
+        ("Real", Some(x)) => format!("Start::Real({})", lit(x)),
+        ("Integer", Some(x)) => format!("Start::Integer({})", x.parse::<i32>().expect("int")),
+        ("Boolean", Some(x)) => format!("Start::Boolean({})", x == "true"),
+        (_, Some(x)) => format!("Start::String({x:?})"),
+    };
+    let opt = |o: &Option<String>| match o {
+        Some(x) => format!("Some({})", lit(x)),
+        None => "None".into(),
+    };
+    format!(
+        "VarInfo {{ name: {:?}, vr: {}, ty: VarType::{ty}, causality: Causality::{causality}, \
+         variability: Variability::{variability}, start: {start}, min: {}, max: {} }}",
+        v.name,
+        v.value_reference,
+        opt(&a.min),
+        opt(&a.max)
+    )
 }
