@@ -2,9 +2,14 @@
 # The main job on a fresh machine: set up, build both FMUs and the CLI, co-simulate plant + estimator on
 # paper 000's example, print how the estimates converge, and write the plots to out/. One release build of the
 # crate; the Python package's extension is compiled on top of it (no wheel: that is CI's job).
+#
+# --workspace: cargo unifies the dependencies' features over the packages it builds, and the extension's own
+# (NumPy's ndarray, PyO3's macros) change those of dependencies the crate shares. Built for the default members
+# alone, the crate would be compiled a second time by the extension's build (`maturin develop`); built with the
+# extension's package, `maturin develop` finds it done and compiles only PyO3 and the extension.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh --main
-cargo build --release
+cargo build --release --workspace
 bash scripts/install_package.sh
 .venv/bin/python scripts/paper_cosim.py "$@"
