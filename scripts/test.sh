@@ -31,7 +31,7 @@ bash scripts/dist.sh
 step "the manylinux2014 wheel (the one build of the Python extension), installed into .venv"
 bash scripts/build_wheel.sh
 .venv/bin/python -m pip install -q --disable-pip-version-check --force-reinstall --no-deps \
-    target/wheels/backlash_fmu-*.whl
+    target/wheels/backlash_fmu-*manylinux*.whl
 step "cargo test --release"
 cargo test --release
 step "pytest"
@@ -40,7 +40,7 @@ step "the Python API tests in a fresh virtual environment holding only the wheel
 rm -rf target/wheel-venv
 python3 -m venv target/wheel-venv
 target/wheel-venv/bin/python -m pip install -q --disable-pip-version-check -c tests/python/requirements.txt \
-    target/wheels/backlash_fmu-*.whl numpy fmpy pytest
+    target/wheels/backlash_fmu-*manylinux*.whl numpy fmpy pytest
 target/wheel-venv/bin/python -m pytest -q -p no:cacheprovider tests/python/test_api.py
 step "every platform: tests/cross on target/dist (Windows under Wine, aarch64 under QEMU)"
 bash scripts/cross_test.sh --no-dist

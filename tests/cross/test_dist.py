@@ -11,24 +11,24 @@
   ad-hoc code signature whose page hashes match the file (macOS on Apple silicon loads nothing unsigned).
 """
 import re
-import subprocess
+import sys
 import zipfile
 
 import pytest
 from elftools.elf.elffile import ELFFile
 from elftools.elf.gnuversions import GNUVerNeedSection
 
-from dist_fmus import dist_fmu
+from dist_fmus import ROOT, dist_fmu
 from macho import CS_ADHOC, CS_HASHTYPE_SHA256, MH_DYLIB, MachO
+
+sys.path.insert(0, str(ROOT / "scripts"))
+from windows_binary import debug_sections, foreign_imports, pe_imports  # noqa: E402  (scripts/ is not a package)
 
 MODELS = ["BacklashPlant", "MrgiaEstimator"]
 PLATFORMS = {2: ["darwin64", "linux64", "win64"],
              3: ["aarch64-darwin", "aarch64-linux", "x86_64-darwin", "x86_64-linux", "x86_64-windows"]}
 MACOS = {"x86_64-darwin": ("x86_64", (10, 12)), "aarch64-darwin": ("arm64", (11, 0))}  # processor, oldest macOS
 
-# DLLs that come with every Windows from 10 on (the API sets resolve inside Windows itself).
-SYSTEM_DLLS = {"kernel32.dll", "ntdll.dll", "msvcrt.dll", "userenv.dll", "ws2_32.dll", "advapi32.dll",
-               "bcrypt.dll", "bcryptprimitives.dll", "ucrtbase.dll", "shell32.dll", "ole32.dll"}
 
 
 def binaries(version, model):
@@ -62,23 +62,15 @@ def libs(tmp_path_factory):
     return paths
 
 
-def pe_imports(path):
-    dump = subprocess.run(["x86_64-w64-mingw32-objdump", "-p", str(path)], capture_output=True, text=True,
-                          check=True).stdout
-    return dump, {m.lower() for m in re.findall(r"DLL Name: (\S+)", dump)}
-
-
 def test_windows_dll_imports_only_what_every_windows_has(libs):
     dump, dlls = pe_imports(libs["x86_64-windows"])
     assert "kernel32.dll" in dlls, dump[:3000]
-    foreign = {d for d in dlls if d not in SYSTEM_DLLS and not d.startswith("api-ms-win-")}
+    foreign = foreign_imports(dlls)
     assert not foreign, f"the DLL needs {sorted(foreign)}, which Windows does not have"
 
 
 def test_windows_dll_has_no_debug_information(libs):
-    heads = subprocess.run(["x86_64-w64-mingw32-objdump", "-h", str(libs["x86_64-windows"])], capture_output=True,
-                           text=True, check=True).stdout
-    assert ".debug_" not in heads and ".symtab" not in heads, heads
+    assert debug_sections(libs["x86_64-windows"]) == []
 
 
 @pytest.mark.parametrize("platform", ["x86_64-linux", "aarch64-linux"])
