@@ -325,10 +325,7 @@ pub fn backlash_step(
     w_prev: f64,
     k: u64,
 ) -> (f64, Mode) {
-    let b = match drift {
-        Some(d) => d.at(bl, k),
-        None => *bl,
-    };
+    let b = drifted(bl, drift, k);
     match curve {
         Some(c) if !c.is_straight() => {
             let up = c.upper(&b, x);
@@ -343,6 +340,25 @@ pub fn backlash_step(
             }
         }
         _ => b.step(x, w_prev),
+    }
+}
+
+/// The backlash at sample k with its gaps' drift.
+pub fn drifted(bl: &BacklashParams, drift: Option<&GapDrift>, k: u64) -> BacklashParams {
+    match drift {
+        Some(d) => d.at(bl, k),
+        None => *bl,
+    }
+}
+
+/// Whether the memory zone of [`backlash_step`] with the backlash `b` (at this sample: see [`drifted`]) is
+/// inverted at input `x`: the upper border's output above the lower one's there (beyond the borders'
+/// crossing, or everywhere with a negative play). There the step, which checks the upper border first,
+/// flips between the borders as x holds or falls.
+pub fn zone_inverted(b: &BacklashParams, curve: Option<&CurvedBorders>, x: f64) -> bool {
+    match curve {
+        Some(c) if !c.is_straight() => c.upper(b, x) > c.lower(b, x),
+        _ => b.upper(x) > b.lower(x),
     }
 }
 
@@ -562,6 +578,33 @@ mod tests {
     use crate::plant::Plant;
     use rand_chacha::ChaCha8Rng;
     use rand_core::SeedableRng;
+
+    /// By hand on the paper's backlash, whose borders cross at x = -4: at x = -5 the upper border gives
+    /// -5.5 and the lower -6 (inverted), at -3 they give -3.5 and -3 (not), at -4 both -4.5 (not: equal). A
+    /// gap drift closing both gaps by 0.005 per sample inverts the zone at x = 0 once -c1 > 1.5 c2, after
+    /// sample 160: not at 150 (0.25 against 0.375), at 170 (0.35 against 0.225). A quadratic term on the upper
+    /// border (s + 0.1 s^2, s = x - c1) leaves x = 6 valid (8.525 against 10.5) and inverts x = 20 (57.525
+    /// against 31.5), where the straight borders are not (19.5 against 31.5).
+    #[test]
+    fn inverted_zone_by_hand() {
+        let bl = BacklashParams::PAPER;
+        let inv = |x: f64| zone_inverted(&bl, None, x);
+        assert!(inv(-5.0) && !inv(-3.0) && !inv(-4.0));
+        let closing = GapDrift {
+            c1_rate: -0.005,
+            c2_rate: -0.005,
+        };
+        let at = |k| drifted(&bl, Some(&closing), k);
+        assert!(!zone_inverted(&at(150), None, 0.0));
+        assert!(zone_inverted(&at(170), None, 0.0));
+        let bent = CurvedBorders {
+            upper: [0.1, 0.0],
+            lower: [0.0, 0.0],
+        };
+        assert!(!zone_inverted(&bl, Some(&bent), 6.0));
+        assert!(zone_inverted(&bl, Some(&bent), 20.0));
+        assert!(!inv(20.0));
+    }
 
     #[test]
     fn contact_friction_on_curved_borders_is_refused_series_is_not() {

@@ -16,8 +16,11 @@
 //!    from the linear model, and from a start without dynamics; then 3 perturbed restarts. Its fit-part cost
 //!    is never above the linear model's (the linear model is one of its points; if the fit ends higher, the
 //!    linear model is taken). Parameters whose simulation is not a valid plant are refused: an unstable
-//!    linear block, m2 <= 0, or a backlash whose memory zone is inverted where the record takes it (there
-//!    the contract's rule flips between the borders every sample, a chatter a fit would otherwise exploit).
+//!    linear block, m2 <= 0, or a backlash whose output flips between the borders against x (the contract's
+//!    rule does so where the memory zone is inverted and x holds or falls) while its zone is inverted on more
+//!    than a tenth of the samples ([`crate::diagnose::fit::model::MAX_INVERTED_SHARE`]): a chatter a fit could
+//!    tune to what the model lacks. The plant's own visits beyond its borders' crossing flip in the same way
+//!    on a few samples, and are accepted.
 //!    Whether the data support the backlash is said plainly: its play c1 + c2 with a standard error from the
 //!    fit's information matrix, and its held-out error against the linear model's.
 //! 4. **Test the residual** e = y - y_model **of the fit part** with the tests of [`crate::diagnose::residual`].
