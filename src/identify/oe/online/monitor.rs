@@ -71,7 +71,9 @@
 //! side) are what an offset or a gain change cannot make. Two kinds of window are tried:
 //!
 //! - the CUSUM's current excursion (since S was last 0): its onset is where S began to climb, which after a
-//!   step often lags the change by several samples (the hold adds little to S);
+//!   step often lags the change by several samples (the hold adds little to S). It is tried twice: with d,
+//!   and with the first-order direction g for d (a play that had always been larger), which fits a gradual
+//!   growth over a long excursion (a drift) better than a step simulated from the excursion's onset;
 //! - each of the last [`RECENT`] samples as the onset, the samples kept in a ring and the windows replayed
 //!   only while S >= H. Scanning onsets would let an offset or gain step that came after the onset pass as
 //!   the hold and its end, so a scanned window must also beat every single split: its G is the smallest
@@ -326,6 +328,7 @@ impl Nuisance {
 struct Sample {
     e: f64,
     h: f64,
+    g: f64,
     gt: f64,
     x: f64,
     w_prev: f64,
@@ -362,6 +365,8 @@ struct Detector {
     threshold: [f64; BANK.len()],
     stat: [f64; BANK.len()],
     window: [Window; BANK.len()],
+    /// Per CUSUM of the bank: the sums over its current excursion with the first-order direction g for d.
+    first_order: [Window; BANK.len()],
     /// Per CUSUM of the bank: the output of the play-change model (the gaps scaled by its growth) simulated
     /// from the start of its current excursion (module docs).
     alt: [f64; BANK.len()],
@@ -380,6 +385,7 @@ impl Detector {
     fn restart(&mut self) {
         self.stat = [0.0; BANK.len()];
         self.window = [Window::default(); BANK.len()];
+        self.first_order = [Window::default(); BANK.len()];
         self.alt = [0.0; BANK.len()];
         self.recent_n = 0;
     }
@@ -446,6 +452,7 @@ impl Detector {
         let sample = Sample {
             e,
             h,
+            g,
             gt,
             x,
             w_prev,
@@ -529,22 +536,28 @@ impl Detector {
         }
         if self.stat[i] + z <= 0.0 {
             (self.stat[i], self.window[i]) = (0.0, Window::default());
+            self.first_order[i] = Window::default();
             return None;
         }
         if self.stat[i] == 0.0 {
             (self.window[i].start, self.window[i].start_time) = (k, t);
+            (self.first_order[i].start, self.first_order[i].start_time) = (k, t);
             self.alt[i] = s.w_prev;
         }
         self.stat[i] += z;
         let (m2, c1, c2) = self.grown(r);
         self.alt[i] = backlash_step(s.x, self.alt[i], m2, c1, c2).0;
         self.window[i].add(s.e, s.h, (self.alt[i] - s.w) / r);
+        self.first_order[i].add(s.e, s.h, s.g);
         let h = self.threshold[i];
         if self.stat[i] < h {
             return None;
         }
         if self.window[i].glr(self.sigma2) >= h {
             return Some(self.window[i]);
+        }
+        if self.first_order[i].glr(self.sigma2) >= h {
+            return Some(self.first_order[i]);
         }
         self.scan(r).filter(|(_, glr)| *glr >= h).map(|(w, _)| w)
     }
@@ -765,6 +778,7 @@ impl Monitor {
             threshold: [f64::INFINITY; BANK.len()],
             stat: [0.0; BANK.len()],
             window: [Window::default(); BANK.len()],
+            first_order: [Window::default(); BANK.len()],
             alt: [0.0; BANK.len()],
             recent: [[0.0; 7]; RECENT],
             recent_n: 0,
@@ -847,7 +861,7 @@ impl Monitor {
         ];
         let ok = vals
             .iter()
-            .chain(d.window.iter().flat_map(|w| &w.sums))
+            .chain(d.window.iter().chain(&d.first_order).flat_map(|w| &w.sums))
             .chain(&d.stat)
             .chain(&d.tilt)
             .chain(&d.nuisance.info)
