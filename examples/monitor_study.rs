@@ -14,8 +14,8 @@
 
 use backlash::identify::oe::online::monitor::MonitorConfig;
 use backlash::identify::oe::online::monitor::study::{
-    Change, arl_interval, arrival_delays, detect, drift_delay_bound, false_alarms, kl_per_sample,
-    noise_std, rule_crossings, rule_delay, step_delay_bound,
+    Change, Detection, Run, arl_interval, arrival_delays, detect, drift_delay_bound, false_alarms,
+    kl_per_sample, noise_std, rule_crossings, rule_delay, step_delay_bound,
 };
 use backlash::identify::oe::plant_variant;
 use backlash::plant::PlantParams;
@@ -140,114 +140,93 @@ struct Delays {
     onset_err: Vec<f64>,
 }
 
-fn mean(v: &[u64]) -> f64 {
-    v.iter().sum::<u64>() as f64 / v.len().max(1) as f64
+/// The play changes of the delay table: label, ratio (a step) or rate per sample (a drift), drift.
+const PLAY_CHANGES: [(&str, f64, bool); 4] = [
+    ("+10% step", 0.10, false),
+    ("+25% step", 0.25, false),
+    ("+50% step", 0.50, false),
+    ("drift +10% per 1000 samples", 1e-4, true),
+];
+
+/// The play change of [`PLAY_CHANGES`] with `ratio` and `drift`, beginning at sample `at`.
+fn play_change(ratio: f64, drift: bool, at: u64) -> Change {
+    if drift {
+        Change::PlayDrift { at, rate: ratio }
+    } else {
+        Change::PlayStep { at, ratio }
+    }
 }
 
-/// Table 2: detection delays on `name` at `snr`, period `period`, `runs` runs per change.
-fn delay_table(threads: usize, name: &str, snr: f64, period: f64, runs: u64, arl: f64) {
-    let pl = plant(name);
-    let sigma = noise_std(pl, snr);
-    let play = pl.backlash.c1 + pl.backlash.c2;
-    let changes: [(&str, f64, bool); 4] = [
-        ("+10% step", 0.10, false),
-        ("+25% step", 0.25, false),
-        ("+50% step", 0.50, false),
-        ("drift +10% per 1000 samples", 1e-4, true),
-    ];
-    let make = |ratio: f64, drift: bool| {
-        move |at: u64| {
-            if drift {
-                Change::PlayDrift { at, rate: ratio }
-            } else {
-                Change::PlayStep { at, ratio }
-            }
-        }
-    };
-    let horizon = 20 * AFTER;
-    // Our monitor.
-    let jobs: Vec<(usize, u64)> = (0..changes.len())
-        .flat_map(|c| (0..runs).map(move |r| (c, r)))
-        .collect();
-    let got = parallel(threads, jobs.len(), |i| {
+/// The delay bound with the offset and the gain unknown, from the test's efficient information per sample
+/// `info` at the change (one per run; module docs of the monitor).
+fn efficient_bound(info: &[f64], sigma: f64, ratio: f64, drift: bool, period: f64) -> f64 {
+    let unit = info.iter().sum::<f64>() / info.len().max(1) as f64 / (2.0 * sigma * sigma);
+    if drift {
+        drift_delay_bound(unit * 0.01, 0.1, ratio, period)
+    } else {
+        step_delay_bound(unit * ratio * ratio, period)
+    }
+}
+
+/// The monitor on each job's record: (change of [`PLAY_CHANGES`], run) -> its detection.
+fn monitor_runs(
+    threads: usize,
+    (pl, sigma): (PlantParams, f64),
+    period: f64,
+    jobs: &[(usize, u64)],
+    horizon: u64,
+) -> Vec<Detection> {
+    parallel(threads, jobs.len(), |i| {
         let (c, r) = jobs[i];
-        let (_, ratio, drift) = changes[c];
-        detect(
-            pl,
-            sigma,
-            2000 + r,
-            cfg(period),
-            AFTER,
-            horizon,
-            make(ratio, drift),
-        )
-    });
-    let freeze = got[0].at - AFTER;
-    // Run i's record: its seed, its change and the change's sample.
-    let record = |i: usize| {
-        let (c, r) = jobs[i];
-        let (_, ratio, drift) = changes[c];
-        let at = got[i].at;
-        (2000 + r, make(ratio, drift)(at), at)
-    };
-    // The information as it arrives on each run's record (known; offset and gain may change with the play).
-    let arrival = parallel(threads, jobs.len(), |i| {
-        let (seed, change, at) = record(i);
-        arrival_delays(pl, sigma, seed, change, at, (period, horizon))
-    });
-    // The threshold rule: tuned on unchanged records to the monitor's measured run length.
-    let taus: Vec<f64> = (1..=400).map(|j| j as f64 * 0.0025 * play).collect();
-    let tune_runs = 8u64;
-    let tune_len = ((arl * 100.0) / tune_runs as f64) as u64;
-    let counts = parallel(threads, tune_runs as usize, |r| {
-        rule_crossings(
-            pl,
-            sigma,
-            3000 + r as u64,
-            RULE_RHO_MIN,
-            freeze,
-            tune_len,
-            &taus,
-        )
-    });
-    let total = tune_len * tune_runs;
-    let tau = taus
-        .iter()
-        .enumerate()
-        .find(|(j, _)| {
-            let n: u64 = counts.iter().map(|c| c[*j]).sum();
-            n == 0 || total as f64 / n as f64 >= arl
-        })
-        .map_or(f64::INFINITY, |(_, t)| *t);
-    let rule = parallel(threads, jobs.len(), |i| {
-        let (seed, change, at) = record(i);
-        rule_delay(
-            pl,
-            sigma,
-            seed,
-            RULE_RHO_MIN,
-            freeze,
-            tau,
-            change,
-            at,
-            horizon,
-        )
-    });
-    let kl10 = kl_per_sample(pl, 0.1, sigma, 20_000);
-    for (c, (label, ratio, drift)) in changes.iter().enumerate() {
+        let (_, ratio, drift) = PLAY_CHANGES[c];
+        let change = move |at| play_change(ratio, drift, at);
+        detect(pl, sigma, 2000 + r, cfg(period), AFTER, horizon, change)
+    })
+}
+
+/// The runs of a delay table: (change, run) of each job, the monitor's detection, the threshold rule's
+/// delay and the arrival delays (offset and gain known, may change) on the same record.
+struct DelayRuns<'a> {
+    jobs: &'a [(usize, u64)],
+    got: &'a [Detection],
+    rule: &'a [Option<u64>],
+    arrival: &'a [(Option<u64>, Option<u64>)],
+}
+
+/// One run of a delay table: (change, run), the monitor's detection, the rule's delay, the arrival delays.
+type RunOf<'a> = (
+    &'a (usize, u64),
+    &'a Detection,
+    &'a Option<u64>,
+    &'a (Option<u64>, Option<u64>),
+);
+
+/// The monitor's delays, the rule's delays and misses, the arrival delays (known, efficient) of one change.
+type ChangeDelays = (Delays, Vec<u64>, usize, Vec<u64>, Vec<u64>);
+
+impl DelayRuns<'_> {
+    /// The runs of change `c`.
+    fn of(&self, c: usize) -> impl Iterator<Item = RunOf<'_>> {
+        self.jobs
+            .iter()
+            .zip(self.got)
+            .zip(self.rule)
+            .zip(self.arrival)
+            .map(|(((j, g), r), a)| (j, g, r, a))
+            .filter(move |(j, ..)| j.0 == c)
+    }
+
+    /// The delays of change `c`, collected over its runs.
+    fn of_change(&self, c: usize) -> ChangeDelays {
         let mut d = Delays {
             ours: vec![],
             early: 0,
             missed: 0,
             onset_err: vec![],
         };
-        let mut rd = vec![];
-        let mut rule_missed = 0;
+        let (mut rd, mut rule_missed) = (vec![], 0);
         let (mut known, mut efficient) = (vec![], vec![]);
-        for (((j, g), r), a) in jobs.iter().zip(&got).zip(&rule).zip(&arrival) {
-            if j.0 != c {
-                continue;
-            }
+        for (_, g, r, a) in self.of(c) {
             known.extend(a.0);
             efficient.extend(a.1);
             d.early += usize::from(g.early);
@@ -264,24 +243,98 @@ fn delay_table(threads: usize, name: &str, snr: f64, period: f64, runs: u64, arl
                 None => rule_missed += 1,
             }
         }
+        (d, rd, rule_missed, known, efficient)
+    }
+}
+
+fn mean(v: &[u64]) -> f64 {
+    v.iter().sum::<u64>() as f64 / v.len().max(1) as f64
+}
+
+/// The threshold rule's tau on the play of `pl`: the smallest whose up-crossings on unchanged records (8
+/// records, 100 times `arl` in all, the reference at `freeze`) come no more often than once per `arl`.
+fn rule_tau(threads: usize, pl: PlantParams, sigma: f64, freeze: u64, arl: f64) -> f64 {
+    let play = pl.backlash.c1 + pl.backlash.c2;
+    let taus: Vec<f64> = (1..=400).map(|j| j as f64 * 0.0025 * play).collect();
+    let tune_runs = 8u64;
+    let tune_len = ((arl * 100.0) / tune_runs as f64) as u64;
+    let counts = parallel(threads, tune_runs as usize, |r| {
+        rule_crossings(
+            pl,
+            sigma,
+            3000 + r as u64,
+            RULE_RHO_MIN,
+            freeze,
+            tune_len,
+            &taus,
+        )
+    });
+    let total = tune_len * tune_runs;
+    taus.iter()
+        .enumerate()
+        .find(|(j, _)| {
+            let n: u64 = counts.iter().map(|c| c[*j]).sum();
+            n == 0 || total as f64 / n as f64 >= arl
+        })
+        .map_or(f64::INFINITY, |(_, t)| *t)
+}
+
+/// Table 2: detection delays on `name` at `snr`, period `period`, `runs` runs per change.
+fn delay_table(threads: usize, name: &str, snr: f64, period: f64, runs: u64, arl: f64) {
+    let pl = plant(name);
+    let sigma = noise_std(pl, snr);
+    let changes = PLAY_CHANGES;
+    let make = |ratio: f64, drift: bool| move |at: u64| play_change(ratio, drift, at);
+    let horizon = 20 * AFTER;
+    // Our monitor.
+    let jobs: Vec<(usize, u64)> = (0..changes.len())
+        .flat_map(|c| (0..runs).map(move |r| (c, r)))
+        .collect();
+    let got = monitor_runs(threads, (pl, sigma), period, &jobs, horizon);
+    let freeze = got[0].at - AFTER;
+    // Run i's record: its seed, its change and the change's sample.
+    let record = |i: usize| {
+        let (c, r) = jobs[i];
+        let (_, ratio, drift) = changes[c];
+        let at = got[i].at;
+        (2000 + r, make(ratio, drift)(at), at)
+    };
+    // The information as it arrives on each run's record (known; offset and gain may change with the play).
+    let arrival = parallel(threads, jobs.len(), |i| {
+        let (seed, change, at) = record(i);
+        arrival_delays(pl, sigma, seed, change, at, (period, horizon))
+    });
+    let tau = rule_tau(threads, pl, sigma, freeze, arl);
+    let rule = parallel(threads, jobs.len(), |i| {
+        let (seed, change, at) = record(i);
+        rule_delay(
+            pl,
+            sigma,
+            seed,
+            RULE_RHO_MIN,
+            freeze,
+            tau,
+            change,
+            at,
+            horizon,
+        )
+    });
+    let runs = DelayRuns {
+        jobs: &jobs,
+        got: &got,
+        rule: &rule,
+        arrival: &arrival,
+    };
+    let kl10 = kl_per_sample(pl, 0.1, sigma, 20_000);
+    for (c, (label, ratio, drift)) in changes.iter().enumerate() {
+        let (d, rd, rule_missed, known, efficient) = runs.of_change(c);
         let bound = if *drift {
             drift_delay_bound(kl10, 0.1, *ratio, period)
         } else {
             step_delay_bound(kl_per_sample(pl, *ratio, sigma, 20_000), period)
         };
-        // The same bounds with the offset and the gain unknown: the efficient information of the test.
-        let info: Vec<f64> = jobs
-            .iter()
-            .zip(&got)
-            .filter(|(j, _)| j.0 == c)
-            .filter_map(|(_, g)| g.information)
-            .collect();
-        let eff_unit = info.iter().sum::<f64>() / info.len().max(1) as f64 / (2.0 * sigma * sigma);
-        let eff = if *drift {
-            drift_delay_bound(eff_unit * 0.01, 0.1, *ratio, period)
-        } else {
-            step_delay_bound(eff_unit * ratio * ratio, period)
-        };
+        let info: Vec<f64> = runs.of(c).filter_map(|(_, g, ..)| g.information).collect();
+        let eff = efficient_bound(&info, sigma, *ratio, *drift, period);
         let onset =
             d.onset_err.iter().map(|e| e.abs()).sum::<f64>() / d.onset_err.len().max(1) as f64;
         println!(
@@ -302,6 +355,39 @@ fn delay_table(threads: usize, name: &str, snr: f64, period: f64, runs: u64, arl
     println!(
         "(threshold rule: tau = {tau:.4} on the play, rho_min = {RULE_RHO_MIN}; reference frozen at sample {freeze})"
     );
+}
+
+/// The alarms on one record (seed `seed`) within `span` samples after `change` (its time set to AFTER
+/// samples after the reference; the test restarts on the same reference after each alarm).
+fn not_wear_alarms(
+    (pl, sigma): (PlantParams, f64),
+    seed: u64,
+    change: Change,
+    period: f64,
+    span: u64,
+) -> u64 {
+    let cfg = MonitorConfig {
+        follow: false,
+        ..cfg(period)
+    };
+    let mut run = Run::new(pl, sigma, seed, Change::None, cfg);
+    run.learn(100_000);
+    let at = run.k + AFTER;
+    let change = match change {
+        Change::InputAmplitude { factor, .. } => Change::InputAmplitude { at, factor },
+        Change::LinearGain { factor, .. } => Change::LinearGain { at, factor },
+        Change::OutputOffset { offset, .. } => Change::OutputOffset { at, offset },
+        other => other,
+    };
+    let mut run = Run::new(pl, sigma, seed, change, cfg);
+    let mut alarms = 0u64;
+    while run.k < at + span {
+        let a = run.step();
+        if run.k > at {
+            alarms += u64::from(a.is_some());
+        }
+    }
+    alarms
 }
 
 /// Table 3: alarms after changes that are not wear (the test restarts on the same reference after each).
@@ -340,43 +426,7 @@ fn not_wear_table(threads: usize, name: &str, snr: f64, period: f64, runs: u64) 
         .collect();
     let got = parallel(threads, jobs.len(), |i| {
         let (c, r) = jobs[i];
-        let seed = 4000 + r;
-        let mut run = backlash::identify::oe::online::monitor::study::Run::new(
-            pl,
-            sigma,
-            seed,
-            Change::None,
-            MonitorConfig {
-                follow: false,
-                ..cfg(period)
-            },
-        );
-        run.learn(100_000);
-        let at = run.k + AFTER;
-        let change = match changes[c].1 {
-            Change::InputAmplitude { factor, .. } => Change::InputAmplitude { at, factor },
-            Change::LinearGain { factor, .. } => Change::LinearGain { at, factor },
-            Change::OutputOffset { offset, .. } => Change::OutputOffset { at, offset },
-            other => other,
-        };
-        let mut run = backlash::identify::oe::online::monitor::study::Run::new(
-            pl,
-            sigma,
-            seed,
-            change,
-            MonitorConfig {
-                follow: false,
-                ..cfg(period)
-            },
-        );
-        let mut alarms = 0u64;
-        while run.k < at + span {
-            let a = run.step();
-            if run.k > at {
-                alarms += u64::from(a.is_some());
-            }
-        }
-        alarms
+        not_wear_alarms((pl, sigma), 4000 + r, changes[c].1, period, span)
     });
     for (c, (label, _)) in changes.iter().enumerate() {
         let a: u64 = jobs

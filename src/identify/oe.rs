@@ -513,6 +513,11 @@ impl SimState {
         dw: [0.0; MAX_P],
     };
 
+    /// x^(k) of the last sample stepped (the linear block's output, before the backlash).
+    fn last_x(&self) -> f64 {
+        self.xh[self.pos]
+    }
+
     /// Sample k at `th`, with `u_lag(j)` = u(k - d - j) (0 before the record): returns w^(k) and its mode
     /// ([`UP`], [`DOWN`], [`HELD`]); with `SENS` the sensitivities dw^(k)/dtheta are left in `self.dw`
     /// (otherwise they stay zero). No allocation.
@@ -543,29 +548,21 @@ impl SimState {
                 dx[na + j] += uu;
             }
         }
-        let w_prev = self.w_prev;
+        let (w, mode) = backlash_step(x, self.w_prev, m2, c1, c2);
         let dw = &mut self.dw;
-        let (w, mode) = if x > w_prev + c1 {
-            if SENS {
-                dw[..nl].copy_from_slice(&dx[..nl]);
-                dw[im2] = 0.0;
-                dw[ic1] = -1.0;
-                dw[ic2] = 0.0;
+        if SENS && mode == UP {
+            dw[..nl].copy_from_slice(&dx[..nl]);
+            dw[im2] = 0.0;
+            dw[ic1] = -1.0;
+            dw[ic2] = 0.0;
+        } else if SENS && mode == DOWN {
+            for (o, s) in dw[..nl].iter_mut().zip(&dx[..nl]) {
+                *o = m2 * s;
             }
-            (x - c1, UP)
-        } else if x < w_prev / m2 - c2 {
-            if SENS {
-                for (o, s) in dw[..nl].iter_mut().zip(&dx[..nl]) {
-                    *o = m2 * s;
-                }
-                dw[im2] = x + c2;
-                dw[ic1] = 0.0;
-                dw[ic2] = m2;
-            }
-            (m2 * (x + c2), DOWN)
-        } else {
-            (w_prev, HELD)
-        };
+            dw[im2] = x + c2;
+            dw[ic1] = 0.0;
+            dw[ic2] = m2;
+        }
         self.pos = (self.pos + MAX_ORDER - 1) & (MAX_ORDER - 1);
         self.xh[self.pos] = x;
         if SENS {
@@ -573,6 +570,19 @@ impl SimState {
         }
         self.w_prev = w;
         (w, mode)
+    }
+}
+
+/// The backlash of the model on the linear block's output `x` after the output `w_prev`, with slope `m2` of
+/// the lower border and gaps `c1`, `c2`: the output and its mode ([`UP`], [`DOWN`], [`HELD`]).
+#[inline(always)]
+fn backlash_step(x: f64, w_prev: f64, m2: f64, c1: f64, c2: f64) -> (f64, usize) {
+    if x > w_prev + c1 {
+        (x - c1, UP)
+    } else if x < w_prev / m2 - c2 {
+        (m2 * (x + c2), DOWN)
+    } else {
+        (w_prev, HELD)
     }
 }
 

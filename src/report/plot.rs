@@ -657,10 +657,13 @@ where
                     .map_err(|x| e(&x))?;
             }
             SeriesStyle::Line => {
+                // Segment by segment: plotters joins the segments of a thick polyline with mitres, which at
+                // a sharp spike reach far past it (a series that is never negative was drawn below 0).
                 for piece in pieces {
-                    chart
-                        .draw_series(LineSeries::new(piece, style))
-                        .map_err(|x| e(&x))?;
+                    let segments = piece
+                        .windows(2)
+                        .map(|w| PathElement::new(vec![w[0], w[1]], style));
+                    chart.draw_series(segments).map_err(|x| e(&x))?;
                 }
             }
             SeriesStyle::Dashed => {

@@ -54,21 +54,36 @@
 //! first that alarms (in the bank's order) gives the alarm and its onset, and all restart.
 //!
 //! **Confirmation.** The first-order nuisance also adds variance to S over short stretches, so the alarm
-//! needs a second test, on the samples of S's current excursion (since it was last 0): the generalised
-//! likelihood ratio of a play growth with an unknown offset and gain change over that window,
+//! needs a second test: the generalised likelihood ratio of a play growth with an unknown offset and gain
+//! change, on a window from an onset to now,
 //!
 //! ```text
-//! G = (e' . g')^2 / (2 sigma^2 g' . g')    if e' . g' > 0, else 0
+//! d(k) = (w_r(k) - w0(k)) / r                     the play change's signature: w_r the model with both gaps
+//!                                                  scaled by 1 + r, simulated from w0 at the onset on
+//! G    = (e' . d')^2 / (2 sigma^2 d' . d')        if e' . d' > 0, else 0
 //! ```
 //!
-//! with e' and g' the residuals of e and g after least squares on (1, h) within the window (from running
-//! sums: no storage of the window). An offset or gain change is fitted away in e' whatever its size, a play
-//! growth is not. **The alarm comes when S >= H and G >= H** (S, H and the window of one CUSUM of the
-//! bank). `gt` depends on the input and the model only, never on the present measured output, so z(k) is a
-//! log-likelihood ratio of two Gaussian hypotheses about y(k) given the past, which bounds the false alarms
-//! of S; the second test only removes alarms. The window's projection on (1, h) is also what costs time on
-//! a large step: while the backlash stays engaged on one side after the change, a play step looks like an
-//! offset step, and G grows only once the motion reverses (docs/RESULTS.md, "Detection delay").
+//! with e' and d' the residuals of e and d after least squares on (1, h) within the window (from running
+//! sums: no storage of the window). The signature is the play change itself, simulated (the backlash on the
+//! linear block's output x, which the gaps do not change, so one more backlash step per sample): after a
+//! step the wider gap holds the output until x has crossed it, then the output moves by `-r c1` on the
+//! upper border and `+r m2 c2` on the lower one, and those shapes (the hold, the sign that changes with the
+//! side) are what an offset or a gain change cannot make. Two kinds of window are tried:
+//!
+//! - the CUSUM's current excursion (since S was last 0): its onset is where S began to climb, which after a
+//!   step often lags the change by several samples (the hold adds little to S). It is tried twice: with d,
+//!   and with the first-order direction g for d (a play that had always been larger), which fits a gradual
+//!   growth over a long excursion (a drift) better than a step simulated from the excursion's onset;
+//! - each of the last [`RECENT`] samples as the onset, the samples kept in a ring and the windows replayed
+//!   only while S >= H. Scanning onsets would let an offset or gain step that came after the onset pass as
+//!   the hold and its end, so a scanned window must also beat every single split: its G is the smallest
+//!   over the split points of the GLR with (1, h) fitted separately before and after the split (and
+//!   without a split), and the window with the largest such G is the one tried.
+//!
+//! **The alarm comes when S >= H and G >= H for one of these windows** (S, H of one CUSUM of the bank, d
+//! with its r). `gt` depends on the input and the model only, never on the present measured output, so
+//! z(k) is a log-likelihood ratio of two Gaussian hypotheses about y(k) given the past, which bounds the
+//! false alarms of S; the second test only removes alarms.
 //!
 //! # The threshold H
 //!
@@ -88,10 +103,10 @@
 //!
 //! # Alarm
 //!
-//! At an alarm the onset is the first sample of S's current excursion (the usual change-time estimate), and
-//! the relative growth over it is the window's least-squares estimate `rho = e' . g' / g' . g'` (first
-//! order: a large step is underestimated, as the held phases of a wider gap are not linear in it), with
-//! standard error `sigma / sqrt(g' . g')`; the play after the change is `play0 (1 + rho)`. With
+//! At an alarm the onset is the first sample of the confirming window, and the relative growth over it is
+//! the window's least-squares estimate `rho = e' . d' / d' . d'` (d scaled to a unit growth, so rho is a
+//! growth; the signature is that of r, not of rho, so a growth far from r is estimated less well), with
+//! standard error `sigma / sqrt(d' . d')`; the play after the change is `play0 (1 + rho)`. With
 //! [`MonitorConfig::follow`] the reference's gaps are then scaled by `1 + rho` (when rho > 0) and the test
 //! restarts, so that a further growth (or the rest of a large step) raises a further alarm; without it the
 //! test restarts on the same reference (what a false-alarm study needs). The latched alarm and the first
@@ -109,7 +124,7 @@
 //! No allocation per sample: the state is a few fixed-size arrays (the FMU's contract).
 
 use super::{Refined, Theta};
-use crate::identify::oe::SimState;
+use crate::identify::oe::{SimState, backlash_step};
 use serde::{Deserialize, Serialize};
 
 /// The bank of CUSUMs: the growth each is tuned to, as a multiple of [`MonitorConfig::wear_ratio`] (module
@@ -119,6 +134,10 @@ pub const BANK: [f64; 3] = [1.0, 2.5, 5.0];
 /// that the bank's false alarms come no more often than once per period): half to the CUSUM tuned to
 /// `wear_ratio` (its threshold 0.69 higher than alone), a quarter to each of the others (module docs).
 pub const BANK_SHARE: [f64; 3] = [0.5, 0.25, 0.25];
+/// Samples remembered for the confirmation's scan over recent onsets (module docs).
+pub const RECENT: usize = 32;
+/// Fewest samples in a confirmation window (two go to the offset and the gain).
+const MIN_WINDOW: u64 = 3;
 /// Samples after the reference before the test runs.
 pub const MIN_SAMPLES: u64 = 200;
 /// Samples between two recomputations of the threshold.
@@ -223,7 +242,8 @@ pub enum Status {
     NoPlay,
 }
 
-/// Running sums over the samples of the CUSUM's current excursion: n, e, h, h^2, g, g h, e h, e g, g^2.
+/// Running sums over the samples of a confirmation window (a CUSUM's current excursion, or a recent onset to
+/// now): n, e, h, h^2, d, d h, e h, e d, d^2, with d the play change's signature (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 struct Window {
     start: u64,
@@ -232,14 +252,25 @@ struct Window {
 }
 
 impl Window {
-    fn add(&mut self, e: f64, h: f64, g: f64) {
-        let terms = [1.0, e, h, h * h, g, g * h, e * h, e * g, g * g];
+    fn add(&mut self, e: f64, h: f64, d: f64) {
+        let terms = [1.0, e, h, h * h, d, d * h, e * h, e * d, d * d];
         for (s, t) in self.sums.iter_mut().zip(terms) {
             *s += t;
         }
     }
 
-    /// (e' . g', g' . g') after least squares on (1, h) within the window (module docs).
+    /// The GLR of a play change along d against an offset and gain change within the window (module docs);
+    /// 0 on fewer than [`MIN_WINDOW`] samples or a fit that points away from growth.
+    fn glr(&self, sigma2: f64) -> f64 {
+        let (ed, dd) = self.projected();
+        if self.sums[0] >= MIN_WINDOW as f64 && ed > 0.0 && dd > 0.0 {
+            ed * ed / (2.0 * sigma2 * dd)
+        } else {
+            0.0
+        }
+    }
+
+    /// (e' . d', d' . d') after least squares on (1, h) within the window (module docs).
     fn projected(&self) -> (f64, f64) {
         let [n, se, sh, shh, sg, sgh, seh, seg, sgg] = self.sums;
         let det = n * shh - sh * sh;
@@ -291,6 +322,23 @@ impl Nuisance {
     }
 }
 
+/// What the bank's CUSUMs see of one sample: the residual `e`, the gain direction `h`, the projected play
+/// direction `gt`, the linear block's output `x`, and the simulated model's output before the sample and at
+/// it (`w_prev`, `w`; without the tracked offset).
+struct Sample {
+    e: f64,
+    h: f64,
+    g: f64,
+    gt: f64,
+    x: f64,
+    w_prev: f64,
+    w: f64,
+}
+
+/// One remembered sample (module docs): [x, w_prev, w, e, h, t, k] as in [`Sample`], with the time and the
+/// sample index.
+type Recent = [f64; 7];
+
 /// The CUSUM test against a frozen reference (module docs).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 struct Detector {
@@ -317,6 +365,14 @@ struct Detector {
     threshold: [f64; BANK.len()],
     stat: [f64; BANK.len()],
     window: [Window; BANK.len()],
+    /// Per CUSUM of the bank: the sums over its current excursion with the first-order direction g for d.
+    first_order: [Window; BANK.len()],
+    /// Per CUSUM of the bank: the output of the play-change model (the gaps scaled by its growth) simulated
+    /// from the start of its current excursion (module docs).
+    alt: [f64; BANK.len()],
+    /// The last [`RECENT`] samples (the one counted `q` since the restart in slot `q % RECENT`) and the count.
+    recent: [Recent; RECENT],
+    recent_n: u64,
 }
 
 impl Detector {
@@ -329,6 +385,9 @@ impl Detector {
     fn restart(&mut self) {
         self.stat = [0.0; BANK.len()];
         self.window = [Window::default(); BANK.len()];
+        self.first_order = [Window::default(); BANK.len()];
+        self.alt = [0.0; BANK.len()];
+        self.recent_n = 0;
     }
 
     /// (beta0, beta1) of the least-squares projection of g on (1, h) and the mean squared residual.
@@ -364,8 +423,10 @@ impl Detector {
         lag: impl Fn(usize) -> f64,
         y: f64,
     ) -> Option<Alarm> {
+        let w_prev = self.sim.w_prev;
         let (w, _) = self.sim.step::<true>(&self.theta, lag);
-        let w = w + self.nuisance.offset;
+        let x = self.sim.last_x();
+        let e = y - (w + self.nuisance.offset);
         let th = &self.theta;
         let (na, nb, p) = (th.na, th.nb, th.p());
         let dw = &self.sim.dw;
@@ -377,9 +438,10 @@ impl Detector {
         self.sg += g;
         self.shg += h * g;
         self.sgg += g * g;
-        let e = y - w;
-        self.track(e, h);
+        self.recent[(self.recent_n % RECENT as u64) as usize] = [x, w_prev, w, e, h, t, k as f64];
+        self.recent_n += 1;
         if self.n < MIN_SAMPLES {
+            self.track(e, h);
             return None;
         }
         if self.n == MIN_SAMPLES || self.n.is_multiple_of(REFRESH) {
@@ -387,46 +449,117 @@ impl Detector {
         }
         let (b0, b1, _) = self.projection();
         let gt = g - b0 - b1 * h;
-        let fired = (0..BANK.len())
-            .filter_map(|i| self.cusum(i, cfg.wear_ratio * BANK[i], gt, (e, h, g), (k, t)))
-            .next();
-        fired.map(|(i, eg, gg)| self.alarm(cfg, (k, t), i, eg / gg, gg))
+        let sample = Sample {
+            e,
+            h,
+            g,
+            gt,
+            x,
+            w_prev,
+            w,
+        };
+        let fired =
+            (0..BANK.len()).find_map(|i| self.cusum(i, cfg.wear_ratio * BANK[i], &sample, (k, t)));
+        self.track(e, h);
+        fired.map(|win| self.alarm(cfg, (k, t), &win))
     }
 
-    /// CUSUM `i` of the bank, tuned to the growth `r`, on a sample with the projected play direction `gt`
-    /// and (e, h, g); when it alarms (S >= H and the window's GLR >= H): its window's (e' . g', g' . g').
-    fn cusum(
-        &mut self,
-        i: usize,
-        r: f64,
-        gt: f64,
-        (e, h, g): (f64, f64, f64),
-        (k, t): (u64, f64),
-    ) -> Option<(usize, f64, f64)> {
-        let z = r * gt * (2.0 * e - r * gt) / (2.0 * self.sigma2);
-        let (stat, window) = (&mut self.stat[i], &mut self.window[i]);
+    /// The backlash of the play-change model for growth `r`: the slope of the lower border and the gaps
+    /// scaled by `1 + r`.
+    fn grown(&self, r: f64) -> (f64, f64, f64) {
+        let (v, p) = (&self.theta.v, self.theta.p());
+        (v[p - 3], v[p - 2] * (1.0 + r), v[p - 1] * (1.0 + r))
+    }
+
+    /// The confirmation window, among those from each remembered sample (at least [`MIN_WINDOW`] back) to
+    /// now, with the largest GLR of a play change by `r` beginning at its first sample against an offset and
+    /// gain change at its start and at any one sample within it ([`Detector::split_glr`]), and that GLR
+    /// (module docs). None without such a window.
+    fn scan(&self, r: f64) -> Option<(Window, f64)> {
+        let (m2, c1, c2) = self.grown(r);
+        let entry = |q: u64| &self.recent[(q % RECENT as u64) as usize];
+        let first = self.recent_n.saturating_sub(RECENT as u64);
+        let last = self.recent_n.saturating_sub(MIN_WINDOW - 1);
+        let mut best: Option<(Window, f64)> = None;
+        let mut prefix = [[0.0; 9]; RECENT];
+        for q0 in first..last {
+            let [_, mut wa, .., t0, k0] = *entry(q0);
+            let mut win = Window {
+                start: k0 as u64,
+                start_time: t0,
+                sums: [0.0; 9],
+            };
+            for (q, sums) in (q0..self.recent_n).zip(prefix.iter_mut()) {
+                let [x, _, w, e, h, ..] = *entry(q);
+                wa = backlash_step(x, wa, m2, c1, c2).0;
+                win.add(e, h, (wa - w) / r);
+                *sums = win.sums;
+            }
+            let n = (self.recent_n - q0) as usize;
+            let glr = self.split_glr(&win, &prefix[..n - 1]);
+            if best.is_none_or(|(_, b)| glr > b) {
+                best = Some((win, glr));
+            }
+        }
+        best
+    }
+
+    /// The GLR of the play change on `win` against the worst single split of its offset and gain: the
+    /// smallest over the split points of the GLR with (1, h) fitted separately before and after the split
+    /// (`prefix[m]`: the window's sums over its first m + 1 samples), and without a split (module docs).
+    fn split_glr(&self, win: &Window, prefix: &[[f64; 9]]) -> f64 {
+        let mut glr = win.glr(self.sigma2);
+        for head in prefix {
+            let mut tail = win.sums;
+            for (t, p) in tail.iter_mut().zip(head) {
+                *t -= p;
+            }
+            let part = |sums: [f64; 9]| Window { sums, ..*win }.projected();
+            let ((ed1, dd1), (ed2, dd2)) = (part(*head), part(tail));
+            let (ed, dd) = (ed1 + ed2, dd1 + dd2);
+            let split = if ed > 0.0 && dd > 0.0 {
+                ed * ed / (2.0 * self.sigma2 * dd)
+            } else {
+                0.0
+            };
+            glr = glr.min(split);
+        }
+        glr
+    }
+
+    /// CUSUM `i` of the bank, tuned to the growth `r`, on `sample`; when it alarms (S >= H and a
+    /// confirmation window's GLR >= H): that window (module docs).
+    fn cusum(&mut self, i: usize, r: f64, s: &Sample, (k, t): (u64, f64)) -> Option<Window> {
+        let z = r * s.gt * (2.0 * s.e - r * s.gt) / (2.0 * self.sigma2);
         if !z.is_finite() {
             return None;
         }
-        if *stat + z <= 0.0 {
-            (*stat, *window) = (0.0, Window::default());
+        if self.stat[i] + z <= 0.0 {
+            (self.stat[i], self.window[i]) = (0.0, Window::default());
+            self.first_order[i] = Window::default();
             return None;
         }
-        if *stat == 0.0 {
-            (window.start, window.start_time) = (k, t);
+        if self.stat[i] == 0.0 {
+            (self.window[i].start, self.window[i].start_time) = (k, t);
+            (self.first_order[i].start, self.first_order[i].start_time) = (k, t);
+            self.alt[i] = s.w_prev;
         }
-        *stat += z;
-        window.add(e, h, g);
-        if *stat < self.threshold[i] {
+        self.stat[i] += z;
+        let (m2, c1, c2) = self.grown(r);
+        self.alt[i] = backlash_step(s.x, self.alt[i], m2, c1, c2).0;
+        self.window[i].add(s.e, s.h, (self.alt[i] - s.w) / r);
+        self.first_order[i].add(s.e, s.h, s.g);
+        let h = self.threshold[i];
+        if self.stat[i] < h {
             return None;
         }
-        let (eg, gg) = window.projected();
-        let glr = if eg > 0.0 && gg > 0.0 {
-            eg * eg / (2.0 * self.sigma2 * gg)
-        } else {
-            0.0
-        };
-        (glr >= self.threshold[i]).then_some((i, eg, gg))
+        if self.window[i].glr(self.sigma2) >= h {
+            return Some(self.window[i]);
+        }
+        if self.first_order[i].glr(self.sigma2) >= h {
+            return Some(self.first_order[i]);
+        }
+        self.scan(r).filter(|(_, glr)| *glr >= h).map(|(w, _)| w)
     }
 
     /// The tracker's update with the residual `e` and sensitivity `h` of this sample (after the test used
@@ -440,22 +573,17 @@ impl Detector {
         }
     }
 
-    /// The alarm at sample k raised by CUSUM `i` with its window's growth `rho` and information `gg`, then
-    /// the restart of the bank (and re-reference with `follow`).
-    fn alarm(
-        &mut self,
-        cfg: &MonitorConfig,
-        (k, t): (u64, f64),
-        i: usize,
-        rho: f64,
-        gg: f64,
-    ) -> Alarm {
-        let se = (self.sigma2 / gg).sqrt();
+    /// The alarm at sample k confirmed on the window `win` (its onset, the growth `rho` fitted on it and its
+    /// standard error), then the restart of the bank (and re-reference with `follow`).
+    fn alarm(&mut self, cfg: &MonitorConfig, (k, t): (u64, f64), win: &Window) -> Alarm {
+        let (ed, dd) = win.projected();
+        let rho = ed / dd;
+        let se = (self.sigma2 / dd).sqrt();
         let alarm = Alarm {
             sample: k,
             time: t,
-            onset_sample: self.window[i].start,
-            onset: self.window[i].start_time,
+            onset_sample: win.start,
+            onset: win.start_time,
             play_before: self.play,
             play_before_se: self.play_se,
             play_after: self.play * (1.0 + rho),
@@ -650,6 +778,10 @@ impl Monitor {
             threshold: [f64::INFINITY; BANK.len()],
             stat: [0.0; BANK.len()],
             window: [Window::default(); BANK.len()],
+            first_order: [Window::default(); BANK.len()],
+            alt: [0.0; BANK.len()],
+            recent: [[0.0; 7]; RECENT],
+            recent_n: 0,
         };
         d.reset_moments();
         Some(d)
@@ -729,7 +861,7 @@ impl Monitor {
         ];
         let ok = vals
             .iter()
-            .chain(d.window.iter().flat_map(|w| &w.sums))
+            .chain(d.window.iter().chain(&d.first_order).flat_map(|w| &w.sums))
             .chain(&d.stat)
             .chain(&d.tilt)
             .chain(&d.nuisance.info)
@@ -738,6 +870,10 @@ impl Monitor {
             && d.stat.iter().all(|s| *s >= 0.0)
             && d.tilt.iter().all(|t| *t > 0.0)
             && d.sim.pos < 4
+            && d.alt
+                .iter()
+                .chain(d.recent.iter().flatten())
+                .all(|v| v.is_finite())
             && d.theta
                 .v
                 .iter()

@@ -325,3 +325,19 @@ fn the_test_alone_equals_the_full_run_on_a_frozen_reference() {
     assert_eq!(alone, (30_000, full));
     assert!(full > 0, "period 1e3 over 30 periods: some alarms expected");
 }
+
+/// The confirmation scans the recent onsets with the play change simulated from each: on records where the
+/// confirmation on the CUSUM's excursion with the first-order direction g (before the scan) took 24, 35 and
+/// 61 samples to confirm a +50% step (SNR 20, period 1e4), the alarm comes within 15 samples, none before.
+#[test]
+fn a_large_play_step_is_confirmed_without_waiting_for_the_excursion() {
+    let plant = PlantParams::PAPER;
+    let sigma = noise_std(plant, 20.0);
+    for seed in [1, 3, 8] {
+        let step = |at| Change::PlayStep { at, ratio: 0.5 };
+        let d = super::study::detect(plant, sigma, seed, cfg(1e4), 2000, 2000, step);
+        assert!(!d.early, "seed {seed}: an alarm before the step");
+        let delay = d.delay.unwrap_or(u64::MAX);
+        assert!(delay <= 15, "seed {seed}: confirmed after {delay} samples");
+    }
+}
