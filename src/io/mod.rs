@@ -296,6 +296,14 @@ impl RowChecker {
         true
     }
 
+    /// A read of this checker's file that failed.
+    fn io_error(&self, source: std::io::Error) -> CsvError {
+        CsvError::Io {
+            file: self.file.clone(),
+            source,
+        }
+    }
+
     /// Whether every time column of `row` is above the previous row's.
     fn times_increase(&self, row: &[f64]) -> bool {
         !self.has_prev
@@ -521,10 +529,10 @@ impl<R: BufRead> RowReader<R> {
     /// accepts it ([`RowChecker::check_plain`]): then it is consumed and `row` holds it (`true`). Otherwise
     /// nothing is consumed and [`RowReader::read_line`] reads the same line the general way.
     fn next_plain(&mut self) -> Result<bool, CsvError> {
-        let buffered = self.reader.fill_buf().map_err(|source| CsvError::Io {
-            file: self.checker.file.clone(),
-            source,
-        })?;
+        let buffered = self
+            .reader
+            .fill_buf()
+            .map_err(|source| self.checker.io_error(source))?;
         // A line within the length limit, line end included (as `read_line` takes it).
         let within = &buffered[..buffered.len().min(MAX_LINE_BYTES)];
         let Some(end) = memchr::memchr(b'\n', within) else {
@@ -546,10 +554,7 @@ impl<R: BufRead> RowReader<R> {
     fn read_line(&mut self) -> Result<bool, CsvError> {
         self.buf.clear();
         let limit = MAX_LINE_BYTES as u64;
-        let io = |source| CsvError::Io {
-            file: self.checker.file.clone(),
-            source,
-        };
+        let io = |source| self.checker.io_error(source);
         let n = (&mut self.reader)
             .take(limit)
             .read_until(b'\n', &mut self.buf)

@@ -347,13 +347,7 @@ impl Detector {
             }
             let part = |sums: [f64; 9]| Window { sums, ..*win }.projected();
             let ((ed1, dd1), (ed2, dd2)) = (part(*head), part(tail));
-            let (ed, dd) = (ed1 + ed2, dd1 + dd2);
-            let split = if ed > 0.0 && dd > 0.0 {
-                ed * ed / (2.0 * self.sigma2 * dd)
-            } else {
-                0.0
-            };
-            glr = glr.min(split);
+            glr = glr.min(growth_glr(ed1 + ed2, dd1 + dd2, self.sigma2));
         }
         glr
     }
@@ -742,6 +736,6 @@ mod window;
 
 pub use config::{Alarm, MonitorConfig, MonitorError, Status};
 pub use session::{Session, Summary};
-use window::{Nuisance, Window};
+use window::{Nuisance, Window, growth_glr};
 #[cfg(test)]
 mod tests;

@@ -25,9 +25,9 @@ impl Window {
     /// The GLR of a play change along d against an offset and gain change within the window (module docs);
     /// 0 on fewer than [`MIN_WINDOW`] samples or a fit that points away from growth.
     pub(super) fn glr(&self, sigma2: f64) -> f64 {
-        let (ed, dd) = self.projected();
-        if self.sums[0] >= MIN_WINDOW as f64 && ed > 0.0 && dd > 0.0 {
-            ed * ed / (2.0 * sigma2 * dd)
+        if self.sums[0] >= MIN_WINDOW as f64 {
+            let (ed, dd) = self.projected();
+            growth_glr(ed, dd, sigma2)
         } else {
             0.0
         }
@@ -49,6 +49,16 @@ impl Window {
             seg - quad([se, seh], [sg, sgh]),
             (sgg - quad([sg, sgh], [sg, sgh])).max(0.0),
         )
+    }
+}
+
+/// The GLR `(e' . d')^2 / (2 sigma^2 d' . d')` of a play change from the projected sums `ed` = e' . d' and
+/// `dd` = d' . d' (module docs); 0 when the fit points away from growth (`ed <= 0`) or d' vanishes.
+pub(super) fn growth_glr(ed: f64, dd: f64, sigma2: f64) -> f64 {
+    if ed > 0.0 && dd > 0.0 {
+        ed * ed / (2.0 * sigma2 * dd)
+    } else {
+        0.0
     }
 }
 
