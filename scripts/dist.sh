@@ -12,7 +12,8 @@
 # forces the second route. Each platform's library is built once, from the FMU-only library
 # (`--no-default-features`, profile `fmu`: no debug information, stripped):
 #
-#   x86_64 Linux   cargo build --release (packaging/build.rs: cargo zigbuild, GLIBC 2.17), also target/fmu, target/fmu3
+#   x86_64 Linux   cargo build --release --package backlash-fmu-packaging (packaging/build.rs: cargo zigbuild,
+#                  GLIBC 2.17), also target/fmu, target/fmu3
 #   x86_64 Windows cargo build --target x86_64-pc-windows-gnu, linked by x86_64-w64-mingw32-gcc; libgcc and
 #                  winpthread linked in statically, so the DLL imports only DLLs every Windows has
 #   aarch64 Linux  cargo zigbuild --target aarch64-unknown-linux-gnu.2.17 (GLIBC 2.17)
@@ -24,7 +25,7 @@
 # cores busy where a single target's build waits on one crate), and the aarch64 build runs beside it in a
 # target directory of its own (cargo locks a target directory for one build at a time).
 #
-# and scripts/merge_fmus.py puts the binaries beside the Linux one in the FMUs that `cargo build --release`
+# scripts/merge_fmus.py then puts the binaries beside the Linux one in the FMUs that the packaging build
 # packaged. The FMUs are checked by tests/cross (scripts/cross_test.sh runs them under Wine and QEMU).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -68,8 +69,11 @@ fi
 unset RUSTFLAGS CARGO_ENCODED_RUSTFLAGS
 lib_args=(--package backlash-fmu --profile fmu --lib --no-default-features)
 
-say "x86_64 Linux: cargo build --release (the FMUs of target/fmu and target/fmu3)"
-BACKLASH_FMU_PORTABLE=require cargo build --release
+# Only the packaging package: its build script builds and packages the FMU library; the crate's own release
+# build (the program) is not needed here, and a caller that built it with other dependency features (the tests'
+# set, scripts/test.sh) would have it compiled again.
+say "x86_64 Linux: the packaging package (the FMUs of target/fmu and target/fmu3)"
+BACKLASH_FMU_PORTABLE=require cargo build --release --package backlash-fmu-packaging
 
 say "aarch64 Linux (cargo zigbuild, in the background, log target/fmu-build-zig.log)"
 env BACKLASH_FMU_NESTED=1 PATH="$venv_bin:$PATH" "${rust_env[@]}" "$venv_bin/cargo-zigbuild" zigbuild \

@@ -20,12 +20,12 @@ cargo clippy --workspace --all-targets -- -D warnings
 cargo clippy --lib --no-default-features -- -D warnings
 step "cargo doc (broken or private links in the documentation are errors)"
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
-step "cargo build --release (both FMUs and the CLI)"
-cargo build --release
-# The other platforms' FMUs now, while the release build is fresh: its Linux part is then a no-op. After
-# `cargo test` it would compile the crate again: the tests' dev-dependencies enable more features of shared
-# dependencies (serde, libc, memchr, ...), so the crate's library is rebuilt for the tests, in the same
-# file, and rebuilt back for a plain build.
+# With the tests and examples: the tests' dev-dependencies enable more features of shared dependencies (serde,
+# libc, flate2, ...), and cargo compiles the crate's library once per set of features. Built here with the
+# tests' set, the program, the tests and `cargo test` below share one build of the crate; a plain
+# `cargo build --release` would compile it a second time (about a minute), so no step here runs one.
+step "cargo build --release --lib --bins --tests --examples (both FMUs, the CLI, the tests)"
+cargo build --release --lib --bins --tests --examples
 step "every platform's FMUs: scripts/dist.sh (target/dist)"
 bash scripts/dist.sh
 step "the manylinux2014 wheel (the one build of the Python extension), installed into .venv"
@@ -34,16 +34,33 @@ bash scripts/build_wheel.sh
     target/wheels/backlash_fmu-*manylinux*.whl
 step "cargo test --release"
 cargo test --release
-step "pytest"
-.venv/bin/python -m pytest -q --durations=10 tests/python --ignore=tests/python/test_api.py
-step "the Python API tests in a fresh virtual environment holding only the wheel"
-rm -rf target/wheel-venv
-python3 -m venv target/wheel-venv
-target/wheel-venv/bin/python -m pip install -q --disable-pip-version-check -c tests/python/requirements.txt \
-    target/wheels/backlash_fmu-*manylinux*.whl numpy fmpy pytest
-target/wheel-venv/bin/python -m pytest -q -p no:cacheprovider tests/python/test_api.py
+# The Python tests, and tests/cross with the compliance checks, keep one core each busy for most of their time:
+# they run side by side, the Python tests' output kept in a log and printed when they end.
+python_tests() {
+    .venv/bin/python -m pytest -q --durations=10 tests/python --ignore=tests/python/test_api.py &&
+        echo "-- the Python API tests in a fresh virtual environment holding only the wheel" &&
+        rm -rf target/wheel-venv &&
+        python3 -m venv target/wheel-venv &&
+        target/wheel-venv/bin/python -m pip install -q --disable-pip-version-check -c tests/python/requirements.txt \
+            target/wheels/backlash_fmu-*manylinux*.whl numpy fmpy pytest &&
+        target/wheel-venv/bin/python -m pytest -q -p no:cacheprovider tests/python/test_api.py
+}
+python_log=target/python-tests.log
+step "pytest, then the Python API tests in a fresh virtual environment holding only the wheel (in the background: $python_log)"
+python_tests >"$python_log" 2>&1 &
+python_pid=$!
+trap 'kill "$python_pid" 2>/dev/null || true' EXIT
 step "every platform: tests/cross on target/dist (Windows under Wine, aarch64 under QEMU)"
 bash scripts/cross_test.sh --no-dist
 step "compliance: valgrind, fmutool, long fuzz, 1 GB file in bounded memory"
 bash scripts/compliance.sh
+step "the Python tests' output ($python_log)"
+python_status=0
+wait "$python_pid" || python_status=$?
+trap - EXIT
+cat "$python_log"
+if [ "$python_status" -ne 0 ]; then
+    echo "the Python tests failed (exit $python_status): $python_log" >&2
+    exit "$python_status"
+fi
 step "all tests passed"

@@ -116,25 +116,32 @@ calls! {
     ActivateModelPartition => "fmi3ActivateModelPartition",
 }
 
-impl Api for Call {
-    type Code = Fmi3StatusC;
+/// The groups of calls that share a state rule in the FMI 3.0 co-simulation state machine.
+#[derive(Clone, Copy)]
+enum Rule {
+    /// fmi3GetVersion: anywhere but after a fatal error.
+    NotFatal,
+    Instantiate,
+    /// Calls on an instance outside a step in progress (logging, free, reset, FMU states).
+    Instance,
+    EnterInitialization,
+    ExitInitialization,
+    Terminate,
+    Get,
+    Set,
+    DoStep,
+    /// Functions this FMU does not provide.
+    NotProvided,
+}
 
-    fn code(status: Status) -> Fmi3StatusC {
-        Fmi3Status::from(status) as Fmi3StatusC
-    }
-
-    fn name(self) -> &'static str {
-        Call::name(self)
-    }
-
-    fn allowed_in(self, s: State) -> bool {
-        use State::*;
-        let instance = !matches!(s, StartEnd | Fatal);
+impl Call {
+    /// The state rule this call follows: every call of the standard in exactly one group.
+    fn rule(self) -> Rule {
         match self {
-            Call::GetVersion => s != Fatal,
+            Call::GetVersion => Rule::NotFatal,
             Call::InstantiateModelExchange
             | Call::InstantiateCoSimulation
-            | Call::InstantiateScheduledExecution => s == StartEnd,
+            | Call::InstantiateScheduledExecution => Rule::Instantiate,
             Call::SetDebugLogging
             | Call::FreeInstance
             | Call::Reset
@@ -143,19 +150,13 @@ impl Api for Call {
             | Call::FreeFmuState
             | Call::SerializedFmuStateSize
             | Call::SerializeFmuState
-            | Call::DeserializeFmuState => instance && s != StepInProgress,
-            Call::EnterInitializationMode => s == Instantiated,
-            Call::ExitInitializationMode => s == InitializationMode,
-            Call::Terminate => matches!(s, StepComplete | StepFailed),
-            Call::GetFloat64 | Call::GetInt32 | Call::GetBoolean => matches!(
-                s,
-                InitializationMode | StepComplete | StepFailed | Terminated | Error
-            ),
-            Call::SetFloat64 | Call::SetInt32 | Call::SetBoolean => {
-                matches!(s, Instantiated | InitializationMode | StepComplete)
-            }
-            Call::DoStep => s == StepComplete,
-            // Not provided: answered with their own reason wherever an instance exists.
+            | Call::DeserializeFmuState => Rule::Instance,
+            Call::EnterInitializationMode => Rule::EnterInitialization,
+            Call::ExitInitializationMode => Rule::ExitInitialization,
+            Call::Terminate => Rule::Terminate,
+            Call::GetFloat64 | Call::GetInt32 | Call::GetBoolean => Rule::Get,
+            Call::SetFloat64 | Call::SetInt32 | Call::SetBoolean => Rule::Set,
+            Call::DoStep => Rule::DoStep,
             Call::EnterEventMode
             | Call::GetFloat32
             | Call::GetInt8
@@ -207,7 +208,40 @@ impl Api for Call {
             | Call::GetNominalsOfContinuousStates
             | Call::GetNumberOfEventIndicators
             | Call::GetNumberOfContinuousStates
-            | Call::ActivateModelPartition => instance,
+            | Call::ActivateModelPartition => Rule::NotProvided,
+        }
+    }
+}
+
+impl Api for Call {
+    type Code = Fmi3StatusC;
+
+    fn code(status: Status) -> Fmi3StatusC {
+        Fmi3Status::from(status) as Fmi3StatusC
+    }
+
+    fn name(self) -> &'static str {
+        Call::name(self)
+    }
+
+    fn allowed_in(self, s: State) -> bool {
+        use State::*;
+        let instance = !matches!(s, StartEnd | Fatal);
+        match self.rule() {
+            Rule::NotFatal => s != Fatal,
+            Rule::Instantiate => s == StartEnd,
+            Rule::Instance => instance && s != StepInProgress,
+            Rule::EnterInitialization => s == Instantiated,
+            Rule::ExitInitialization => s == InitializationMode,
+            Rule::Terminate => matches!(s, StepComplete | StepFailed),
+            Rule::Get => matches!(
+                s,
+                InitializationMode | StepComplete | StepFailed | Terminated | Error
+            ),
+            Rule::Set => matches!(s, Instantiated | InitializationMode | StepComplete),
+            Rule::DoStep => s == StepComplete,
+            // Not provided: answered with their own reason wherever an instance exists.
+            Rule::NotProvided => instance,
         }
     }
 }

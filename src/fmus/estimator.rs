@@ -120,6 +120,15 @@ impl EstimatorFmu {
         }
     }
 
+    /// The last sample's prediction, error and update flag; zeros and false before the first step.
+    fn last_step(&self) -> StepResult {
+        self.est.as_ref().map(Running::last).unwrap_or(StepResult {
+            y_hat: 0.0,
+            e: 0.0,
+            updating: false,
+        })
+    }
+
     fn wear_value(&self, var: Var) -> Value {
         let first = self.mon.as_ref().and_then(Monitor::first_alarm);
         match var {
@@ -205,13 +214,6 @@ impl Model for EstimatorFmu {
         let a_se = |i: usize| r(at(Running::std_err_at, (i < na).then_some(i)));
         let b_se = |j: usize| r(at(Running::std_err_at, (j <= nb).then_some(na + j)));
         let tail_se = |off: usize| r(at(Running::std_err_at, Some(na + nb + 1 + off)));
-        let last = || {
-            self.est.as_ref().map(Running::last).unwrap_or(StepResult {
-                y_hat: 0.0,
-                e: 0.0,
-                updating: false,
-            })
-        };
         match var {
             Var::Ts => r(self.ts),
             Var::U => r(self.u),
@@ -251,9 +253,9 @@ impl Model for EstimatorFmu {
             Var::M2Se => tail_se(0),
             Var::C1Se => tail_se(1),
             Var::C2Se => tail_se(2),
-            Var::YHat => r(last().y_hat),
-            Var::E => r(last().e),
-            Var::Updating => Value::Boolean(last().updating),
+            Var::YHat => r(self.last_step().y_hat),
+            Var::E => r(self.last_step().e),
+            Var::Updating => Value::Boolean(self.last_step().updating),
             Var::Monitor
             | Var::WearRatio
             | Var::AlarmPeriod

@@ -258,6 +258,21 @@ impl PlantFmu {
     }
 
     /// The outputs: those of the running plant, or in initialization mode those it will start with.
+    /// A gap (`var` c1 or c2), tunable: a running plant takes it from its next sample on. The layer has checked
+    /// the value (finite, >= 0), so the plant cannot refuse it.
+    fn set_gap(&mut self, var: Var, x: f64) {
+        let gaps = &mut self.params.backlash;
+        if var == Var::C1 {
+            gaps.c1 = x;
+        } else {
+            gaps.c2 = x;
+        }
+        if let Some(plant) = &mut self.plant {
+            let accepted = plant.set_backlash(self.params.backlash);
+            debug_assert!(accepted.is_ok());
+        }
+    }
+
     fn output(&self) -> PlantOutput {
         match &self.plant {
             Some(p) => p.output(),
@@ -412,19 +427,7 @@ impl Model for PlantFmu {
             Var::B4 => p.arx.b[4] = x,
             Var::M1 => p.backlash.m1 = x,
             Var::M2 => p.backlash.m2 = x,
-            Var::C1 | Var::C2 => {
-                if var == Var::C1 {
-                    p.backlash.c1 = x;
-                } else {
-                    p.backlash.c2 = x;
-                }
-                // Tunable: a running plant takes the new gap from its next sample on. The layer has checked
-                // the value (finite, >= 0), so the plant cannot refuse it.
-                if let Some(plant) = &mut self.plant {
-                    let accepted = plant.set_backlash(p.backlash);
-                    debug_assert!(accepted.is_ok());
-                }
-            }
+            Var::C1 | Var::C2 => self.set_gap(var, x),
             Var::NoiseStd => p.noise_std = x,
             Var::Border => self.border = value.as_integer(),
             Var::Fa0 => self.fa[0] = x,

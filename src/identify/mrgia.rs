@@ -560,13 +560,7 @@ impl WithRls for Sample<'_> {
         let phi = up || down; // (42)
 
         // Regressor (25) with the fixes listed in the module doc.
-        let sgn = if dx > 0.0 {
-            1.0
-        } else if dx < 0.0 {
-            -1.0
-        } else {
-            0.0
-        };
+        let sgn = sign(dx);
         let mut h = SVector::<f64, N>::zeros();
         for (hi, xp) in h.as_mut_slice()[..na].iter_mut().zip(x_hist) {
             *hi = -xp;
@@ -585,20 +579,46 @@ impl WithRls for Sample<'_> {
         let y_hat = if phi { y1 } else { yp };
         let e = y - y_hat;
 
-        let mut updating = false;
-        if phi {
-            let k = samples + 1;
-            let rho = cfg.rho(k);
-            let mu = cfg.rho(k - 1) / rho * (1.0 - rho); // (30)
-            let floor = (SIGMA_REL_FLOOR * y_max * y_max).max(f64::MIN_POSITIVE);
-            let sigma = (*sigma_state + rho * (e * e - *sigma_state)).max(floor); // (22)
-            let p_cap = N as f64 * cfg.p0;
-            if sigma.is_finite() && rls.update_with(&h, e, mu, sigma, p_cap) {
-                *sigma_state = sigma;
-                updating = true;
-            }
-        }
+        let updating = phi && update(cfg, rls, &h, e, samples + 1, y_max, sigma_state);
         (x, StepResult { y_hat, e, updating })
+    }
+}
+
+/// -1, 0 or 1 by the sign of `dx` (0 for a held x, where `f64::signum` would say 1).
+#[inline]
+fn sign(dx: f64) -> f64 {
+    if dx > 0.0 {
+        1.0
+    } else if dx < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+/// The gradient update of sample `k` (1-based) with regressor `h` and error `e`: the forgetting (30), the
+/// noise variance (22) floored relative to the output's size, and the covariance's trace capped at N p0. False
+/// (nothing changed) when the variance or the update would not be finite (absurd, overflowing data only).
+#[inline]
+fn update<const N: usize>(
+    cfg: &MrgiaConfig,
+    rls: &mut Rls<N>,
+    h: &SVector<f64, N>,
+    e: f64,
+    k: u64,
+    y_max: f64,
+    sigma_state: &mut f64,
+) -> bool {
+    let rho = cfg.rho(k);
+    let mu = cfg.rho(k - 1) / rho * (1.0 - rho); // (30)
+    let floor = (SIGMA_REL_FLOOR * y_max * y_max).max(f64::MIN_POSITIVE);
+    let sigma = (*sigma_state + rho * (e * e - *sigma_state)).max(floor); // (22)
+    let p_cap = N as f64 * cfg.p0;
+    if sigma.is_finite() && rls.update_with(h, e, mu, sigma, p_cap) {
+        *sigma_state = sigma;
+        true
+    } else {
+        false
     }
 }
 

@@ -54,6 +54,7 @@ pub struct GapDrift {
 
 impl GapDrift {
     /// The backlash at sample k.
+    #[inline]
     pub fn at(&self, bl: &BacklashParams, k: u64) -> BacklashParams {
         let t = k as f64;
         BacklashParams {
@@ -315,24 +316,23 @@ impl Effects {
     }
 }
 
-/// One backlash step at sample k with the structural effects (gap drift, curved borders): the new output
-/// for input `x` after output `w_prev`, and the regime. With neither effect this is `bl.step(x, w_prev)`.
+/// One backlash step with the structural effects: the backlash `b` at this sample (the gaps drifted: see
+/// [`drifted`]) and its curved borders; the new output for input `x` after output `w_prev`, and the regime.
+/// Without curved borders this is `b.step(x, w_prev)`.
+#[inline]
 pub fn backlash_step(
-    bl: &BacklashParams,
-    drift: Option<&GapDrift>,
+    b: &BacklashParams,
     curve: Option<&CurvedBorders>,
     x: f64,
     w_prev: f64,
-    k: u64,
 ) -> (f64, Mode) {
-    let b = drifted(bl, drift, k);
     match curve {
         Some(c) if !c.is_straight() => {
-            let up = c.upper(&b, x);
+            let up = c.upper(b, x);
             if up > w_prev {
                 return (up, Mode::Up);
             }
-            let down = c.lower(&b, x);
+            let down = c.lower(b, x);
             if down < w_prev {
                 (down, Mode::Down)
             } else {
@@ -344,6 +344,7 @@ pub fn backlash_step(
 }
 
 /// The backlash at sample k with its gaps' drift.
+#[inline]
 pub fn drifted(bl: &BacklashParams, drift: Option<&GapDrift>, k: u64) -> BacklashParams {
     match drift {
         Some(d) => d.at(bl, k),
@@ -355,6 +356,7 @@ pub fn drifted(bl: &BacklashParams, drift: Option<&GapDrift>, k: u64) -> Backlas
 /// inverted at input `x`: the upper border's output above the lower one's there (beyond the borders'
 /// crossing, or everywhere with a negative play). There the step, which checks the upper border first,
 /// flips between the borders as x holds or falls.
+#[inline]
 pub fn zone_inverted(b: &BacklashParams, curve: Option<&CurvedBorders>, x: f64) -> bool {
     match curve {
         Some(c) if !c.is_straight() => c.upper(b, x) > c.lower(b, x),
@@ -509,22 +511,13 @@ impl EffectsState {
                 (w, poly.mode(), f)
             }
             (Some(fr), None) if fr.form == FrictionForm::Contact => {
-                let bl = e
-                    .gap_drift
-                    .as_ref()
-                    .map_or(p.backlash, |d| d.at(&p.backlash, k));
+                let bl = drifted(&p.backlash, e.gap_drift.as_ref(), k);
                 let (f, z, mode) = contact_step(fr, &bl, x, self.w);
                 (z, mode, f)
             }
             (fr, None) => {
-                let (w, mode) = backlash_step(
-                    &p.backlash,
-                    e.gap_drift.as_ref(),
-                    e.curved_borders.as_ref(),
-                    x,
-                    self.w,
-                    k,
-                );
+                let b = drifted(&p.backlash, e.gap_drift.as_ref(), k);
+                let (w, mode) = backlash_step(&b, e.curved_borders.as_ref(), x, self.w);
                 let f = match fr {
                     Some(fr) => friction_step(fr, self.f, w - self.w),
                     None => w,
@@ -689,7 +682,7 @@ mod tests {
         let mut w2 = 0.0;
         for x in input(300) {
             let a = bl.step(x, w1);
-            let b = backlash_step(&bl, None, Some(&c), x, w2, 0);
+            let b = backlash_step(&bl, Some(&c), x, w2);
             assert_eq!(a.1, b.1);
             assert!((a.0 - b.0).abs() < 1e-12);
             (w1, w2) = (a.0, b.0);
@@ -706,7 +699,9 @@ mod tests {
         let b = g.at(&bl, 1000);
         assert!((b.c1 - 1.5).abs() < 1e-12 && (b.c2 - 0.5).abs() < 1e-12);
         // Engaging up at x = 2 from w = 0: w = x - c1(k).
-        assert!((backlash_step(&bl, Some(&g), None, 2.0, 0.0, 1000).0 - 0.5).abs() < 1e-12);
+        assert!(
+            (backlash_step(&drifted(&bl, Some(&g), 1000), None, 2.0, 0.0).0 - 0.5).abs() < 1e-12
+        );
     }
 
     #[test]

@@ -640,17 +640,16 @@ impl<'a> Runner<'a> {
             if x.is_nan() || x.abs() > self.limit {
                 return false;
             }
+            let b = effects::drifted(&bl, drift, k as u64);
             if let (true, Some(fr)) = (self.contact, friction) {
-                let blk = effects::drifted(&bl, drift, k as u64);
-                let (f, z, mode) = effects::contact_step(fr, &blk, x, w_prev);
+                let (f, z, mode) = effects::contact_step(fr, &b, x, w_prev);
                 sim.push(x, z, self.output(f, k), mode);
                 w_prev = z;
                 f_prev = f;
                 continue;
             }
-            let (w, mode) = effects::backlash_step(&bl, drift, curve, x, w_prev, k as u64);
+            let (w, mode) = effects::backlash_step(&b, curve, x, w_prev);
             if strict {
-                let b = effects::drifted(&bl, drift, k as u64);
                 let inverted = effects::zone_inverted(&b, curve, x);
                 visits += usize::from(inverted);
                 let against = k > 0 && !self.moves_with_x(mode, x - sim.x[k - 1]);
