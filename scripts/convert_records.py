@@ -9,6 +9,8 @@ byte for byte:
     python scripts/convert_records.py servo SRC/logs/motor_telemetry_single_3250.csv 4 data/servo/sts3250_hold.csv
     python scripts/convert_records.py generator SRC/datasets/generator/x_cc.csv SRC/datasets/generator/y_cc.csv \
         data/dc_generator/dc_generator.csv
+    python scripts/convert_records.py tanks SRC/dataBenchmark.csv Est data/tanks/tanks_est.csv
+    python scripts/convert_records.py tanks SRC/dataBenchmark.csv Val data/tanks/tanks_val.csv
 
 Only the standard library is used.
 """
@@ -76,6 +78,20 @@ def convert_generator(x_path: str, y_path: str, out: str) -> int:
     return n
 
 
+def convert_tanks(source: str, part: str, out: str) -> int:
+    """One part (`Est` or `Val`) of the cascaded-tanks benchmark's table (columns uEst, uVal, yEst, yVal, Ts;
+    the sample time in the first row's Ts): time from 0 in seconds, the pump's input and the lower tank's level,
+    as the file spells the numbers."""
+    with open(source, newline="") as f:
+        rows = list(csv.DictReader(f))
+    ts = float(rows[0]["Ts"])
+    with open(out, "w", newline="") as f:
+        f.write("time,u,y\n")
+        for k, r in enumerate(rows):
+            f.write(f"{k * ts:g},{r['u' + part]},{r['y' + part]}\n")
+    return len(rows)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="record", required=True)
@@ -87,9 +103,15 @@ def main() -> None:
     g.add_argument("x")
     g.add_argument("y")
     g.add_argument("out")
+    t = sub.add_parser("tanks", help="a part of the cascaded-tanks benchmark (dataBenchmark.csv)")
+    t.add_argument("source")
+    t.add_argument("part", choices=["Est", "Val"])
+    t.add_argument("out")
     a = p.parse_args()
     if a.record == "servo":
         n = convert_servo(a.source, a.motor, a.out)
+    elif a.record == "tanks":
+        n = convert_tanks(a.source, a.part, a.out)
     else:
         n = convert_generator(a.x, a.y, a.out)
     print(f"{a.out}: {n} rows")

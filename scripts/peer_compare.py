@@ -80,6 +80,8 @@ class Record:
 
 
 SERVO_ABSENT = "not in the repository (licence unclear); data/servo/README.md says how to rebuild it"
+TANKS_ABSENT = ("not in the repository (the data's terms are not stated); data/tanks/README.md says how to "
+                "rebuild it")
 
 RECORDS = [
     Record(
@@ -119,6 +121,23 @@ RECORDS = [
         fallback=(1, 0, 1),
         note="hobby servo (STS3250) gear play, integer encoder counts, 10 Hz",
         if_absent=SERVO_ABSENT,
+    ),
+    Record(
+        "cascaded-tanks",
+        "data/tanks/tanks_est.csv",
+        decimate=None,
+        fallback=(2, 0, 1),
+        note="cascaded tanks with overflow (benchmark estimation part, 4 s); square-root outflows, the level "
+        "clipped at 10 at the top only",
+        if_absent=TANKS_ABSENT,
+    ),
+    Record(
+        "cascaded-tanks-val",
+        "data/tanks/tanks_val.csv",
+        decimate=None,
+        fallback=(2, 0, 1),
+        note="the benchmark's validation part, another multisine, as a record of its own",
+        if_absent=TANKS_ABSENT,
     ),
     Record(
         "dc-generator",

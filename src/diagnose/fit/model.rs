@@ -852,6 +852,21 @@ pub(crate) mod tests {
         }
     }
 
+    /// `clean` with white Gaussian noise of standard deviation `std` added (ChaCha8 from `seed`).
+    pub(crate) fn with_noise(clean: &[f64], std: f64, seed: u64) -> Vec<f64> {
+        use rand_chacha::ChaCha8Rng;
+        use rand_core::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        clean
+            .iter()
+            .map(|v| {
+                let z: f64 = StandardNormal.sample(&mut rng);
+                v + std * z
+            })
+            .collect()
+    }
+
     /// Twelve levels held 60 samples each (720 samples); the two at -3 take the slow block's x below the
     /// crossing -4 (to -4.77) on 29 samples.
     pub(crate) fn crossing_input() -> Vec<f64> {

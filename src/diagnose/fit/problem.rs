@@ -829,19 +829,12 @@ mod tests {
     /// and the fit ended in another minimum.)
     #[test]
     fn the_plain_fit_recovers_a_plant_that_visits_its_inverted_zone() {
-        use crate::diagnose::fit::model::tests::{crossing_input, slow_base};
+        use crate::diagnose::fit::model::tests::{crossing_input, slow_base, with_noise};
         let u = crossing_input();
         let n = u.len();
         let truth = EffectModel::plain(slow_base());
         let clean = truth.simulate(&u, Rest::ZERO, n, 1e6).unwrap().y;
-        let mut rng = ChaCha8Rng::seed_from_u64(3);
-        let y: Vec<f64> = clean
-            .iter()
-            .map(|v| {
-                let z: f64 = StandardNormal.sample(&mut rng);
-                v + 0.02 * z
-            })
-            .collect();
+        let y = with_noise(&clean, 0.02, 3);
         let p = Problem::new(&u, &y, n, LmOptions::default());
         let s = Structure {
             na: 1,

@@ -658,15 +658,12 @@ fn grid_cell_equals_the_sequential_study() {
     assert_eq!(grid.groups, vec![seq]);
 }
 
-/// The tidy table, parsed back from its CSV and aggregated here, gives exactly the reported statistics.
-#[test]
-fn tidy_table_aggregates_to_the_reported_statistics() {
-    let (r, _) = grid_on(2, &small_grid());
-    let csv = r.rows_csv();
+/// The rows of the tidy table's CSV, parsed back (the error column checked against estimate - truth).
+fn parse_rows(csv: &str) -> Vec<Row> {
     let mut lines = csv.lines();
     assert_eq!(lines.next(), Some(ROWS_HEADER));
     let opt = |s: &str| (!s.is_empty()).then(|| s.parse::<f64>().unwrap());
-    let rows: Vec<Row> = lines
+    lines
         .map(|l| {
             let f: Vec<&str> = l.split(',').collect();
             assert_eq!(f.len(), 11, "{l}");
@@ -685,7 +682,14 @@ fn tidy_table_aggregates_to_the_reported_statistics() {
             assert_eq!(opt(f[9]), row.estimate.map(|e| e - row.truth));
             row
         })
-        .collect();
+        .collect()
+}
+
+/// The tidy table, parsed back from its CSV and aggregated here, gives exactly the reported statistics.
+#[test]
+fn tidy_table_aggregates_to_the_reported_statistics() {
+    let (r, _) = grid_on(2, &small_grid());
+    let rows = parse_rows(&r.rows_csv());
     assert_eq!(rows, r.rows);
     let mut checked = 0;
     for g in &r.groups {
