@@ -38,7 +38,10 @@ def block_means(x: np.ndarray, factor: int) -> np.ndarray:
     return x[:m].reshape(-1, factor).mean(axis=1)
 
 
-def one(binary: str, factor: int, seed: int, seconds: int, folder: pathlib.Path) -> str:
+def measure(binary: str, factor: int, seed: int, seconds: int, folder: pathlib.Path) -> dict:
+    """Make the record sampled `factor` times per second and diagnose it with no options: its answer (`doc`,
+    None when refused, then `error`), the true model's held-out error at the rate chosen (`true`) and the
+    diagnosis's wall time."""
     rng = np.random.default_rng(seed)
     u = np.repeat(rng.uniform(-2.4, 2.4, seconds), factor)
     t = np.arange(len(u)) / factor
@@ -52,19 +55,28 @@ def one(binary: str, factor: int, seed: int, seconds: int, folder: pathlib.Path)
     out = subprocess.run([binary, "diagnose", str(rec), "--json"], capture_output=True, text=True)
     secs = time.time() - started
     if out.returncode:
-        return f"| {factor} | {len(u)} | refused: {out.stderr.strip()} |"
+        return {"factor": factor, "n": len(u), "doc": None, "error": out.stderr.strip(), "seconds": secs}
     doc = json.loads(out.stdout)
     d = int(doc["decimate"])
     w, y = block_means(data[:, 3], d), block_means(data[:, 4], d)
     n_fit = min(max(int(round(0.7 * len(y))), 1), len(y) - 1)
     true = float(np.sqrt(np.mean((y[n_fit:] - w[n_fit:]) ** 2)))
-    after = doc["after"]["rmse"]
+    return {"factor": factor, "n": len(u), "doc": doc, "true": true, "seconds": secs}
+
+
+def one(binary: str, factor: int, seed: int, seconds: int, folder: pathlib.Path) -> str:
+    """The table row of `measure`."""
+    m = measure(binary, factor, seed, seconds, folder)
+    doc = m["doc"]
+    if doc is None:
+        return f"| {factor} | {m['n']} | refused: {m['error']} |"
+    true, after = m["true"], doc["after"]["rmse"]
     effects = "+".join(e["id"] for e in doc["effects"]) or "none"
     compared = ", ".join(f"{c['decimate']}: {c['validation_rmse']:.4g}" if c["validation_rmse"] is not None
                          else f"{c['decimate']}: -" for c in doc["rate"].get("candidates", [])) or "-"
-    return (f"| {factor} | {len(u)} | {d} ({doc['rate']['chosen_by']}) | {compared} | {doc['na']}, {doc['nb']}, "
-            f"{doc['delay']} | {doc['linear']['rmse']:.4g} | {doc['before']['rmse']:.4g} | {after:.4g} | "
-            f"{true:.4g} | {after / true:.3f} | {effects} | {secs:.1f} |")
+    return (f"| {factor} | {m['n']} | {doc['decimate']} ({doc['rate']['chosen_by']}) | {compared} | {doc['na']}, "
+            f"{doc['nb']}, {doc['delay']} | {doc['linear']['rmse']:.4g} | {doc['before']['rmse']:.4g} | "
+            f"{after:.4g} | {true:.4g} | {after / true:.3f} | {effects} | {m['seconds']:.1f} |")
 
 
 def main() -> None:

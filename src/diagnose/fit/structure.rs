@@ -403,8 +403,8 @@ fn twins(ranked: &[StructureCandidate], smallest: Option<usize>) -> Vec<usize> {
 
 /// The stage-1 candidate with the orders of `ranked[i]` at delay 1, when `ranked[i]`'s delay is longer. A
 /// backlash holds the output after every reversal until x has crossed the play, and a linear model, which
-/// has no play, imitates that hold with a longer delay: on records of a slow block with play every
-/// structure the linear models rank first carries a delay of 5 to 8 samples where the plant has 1
+/// has no play, imitates that hold with a longer delay: on records of a slow block with play the structures
+/// the linear models rank first carry delays of 3 to 8 samples where the plant has 1
 /// (`tests::a_slow_record_with_play_is_fitted_at_its_short_delay`). The linear ranking's delay is then only
 /// an upper bound, and the backlash model is also fitted at the shortest delay.
 fn shortest_delay_twin(ranked: &[StructureCandidate], i: usize) -> Option<usize> {
