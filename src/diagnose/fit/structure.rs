@@ -15,7 +15,7 @@
 //!    structures lost to a constant.)
 //! 2. the five best of them, the four smallest within 10% of the best linear error, the best static one
 //!    (na = nb = 0), and the best and the smallest near it again at delay 1 when their delay is longer (see
-//!    [`shortest_delay_twin`]), get the full backlash fit (from the
+//!    `shortest_delay_twin`), get the full backlash fit (from the
 //!    stage-1 linear model and the plain model's other starts) on the estimation part; their free-run RMSE
 //!    on the validation part decides. A structure whose fitted model the record does not excite (the test
 //!    by which `identify oe` refuses an estimate, [`crate::identify::oe::check_excited`]) is not eligible:
