@@ -18,7 +18,10 @@
 
 use backlash::identify::mrgia::{Mrgia, MrgiaConfig, paper_input};
 use backlash::plant::{Plant, PlantParams};
-use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::measurement::WallTime;
+use criterion::{
+    BatchSize, BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main,
+};
 use fmi::fmi2::import::Fmi2Import;
 use fmi::fmi2::instance::{CoSimulation, Common, InstanceCS};
 use fmi::traits::FmiImport;
@@ -85,18 +88,47 @@ impl Slave {
     }
 }
 
-fn fmu_step(c: &mut Criterion) {
-    let plant_import: Fmi2Import =
-        fmi::import::from_path(fmu("BacklashPlant")).expect("BacklashPlant.fmu loads");
-    let est_import: Fmi2Import =
-        fmi::import::from_path(fmu("MrgiaEstimator")).expect("MrgiaEstimator.fmu loads");
-    let (pu, py) = (vr(&plant_import, "u"), vr(&plant_import, "y"));
-    let (eu, ey) = (vr(&est_import, "u"), vr(&est_import, "y"));
-    let outs: Vec<u32> = ["a1", "a2", "b0", "m2", "c1", "c2"]
-        .iter()
-        .map(|n| vr(&est_import, n))
-        .collect();
+/// The two FMUs as loaded, and the value references the benchmarks use.
+struct Fmus {
+    plant: Fmi2Import,
+    est: Fmi2Import,
+    /// Plant input u and output y.
+    pu: u32,
+    py: u32,
+    /// Estimator inputs u and y, and the six estimates.
+    eu: u32,
+    ey: u32,
+    outs: Vec<u32>,
+}
 
+impl Fmus {
+    fn load() -> Fmus {
+        let plant: Fmi2Import =
+            fmi::import::from_path(fmu("BacklashPlant")).expect("BacklashPlant.fmu loads");
+        let est: Fmi2Import =
+            fmi::import::from_path(fmu("MrgiaEstimator")).expect("MrgiaEstimator.fmu loads");
+        let (pu, py) = (vr(&plant, "u"), vr(&plant, "y"));
+        let (eu, ey) = (vr(&est, "u"), vr(&est, "y"));
+        let outs: Vec<u32> = ["a1", "a2", "b0", "m2", "c1", "c2"]
+            .iter()
+            .map(|n| vr(&est, n))
+            .collect();
+        Fmus {
+            plant,
+            est,
+            pu,
+            py,
+            eu,
+            ey,
+            outs,
+        }
+    }
+}
+
+type Group<'a> = BenchmarkGroup<'a, WallTime>;
+
+fn fmu_step(c: &mut Criterion) {
+    let fmus = Fmus::load();
     let u = paper_input(STEPS, 3);
     let y: Vec<f64> = Plant::simulate(PlantParams::PAPER, &u)
         .expect("the paper plant is valid")
@@ -106,7 +138,16 @@ fn fmu_step(c: &mut Criterion) {
 
     let mut g = c.benchmark_group("fmu step");
     g.throughput(Throughput::Elements(STEPS as u64));
+    library_baseline(&mut g, &u);
+    plant_alone(&mut g, &fmus, &u);
+    estimator_alone(&mut g, &fmus, &u, &y);
+    estimator_refine(&mut g, &fmus, &u, &y);
+    pair(&mut g, &fmus, &u);
+    g.finish();
+}
 
+/// The same work in-process without FMI: `Plant::advance` then `Mrgia::update` on the library.
+fn library_baseline(g: &mut Group, u: &[f64]) {
     g.bench_function("library plant + estimator, no FMI (baseline)", |b| {
         b.iter_batched(
             || {
@@ -116,7 +157,7 @@ fn fmu_step(c: &mut Criterion) {
                 )
             },
             |(mut p, mut m)| {
-                for &uk in &u {
+                for &uk in u {
                     let yk = p.output().y;
                     p.advance(black_box(uk));
                     m.update(uk, yk);
@@ -126,12 +167,16 @@ fn fmu_step(c: &mut Criterion) {
             BatchSize::SmallInput,
         )
     });
+}
 
-    let mut plant = Slave::new(&plant_import, "plant");
+/// The plant FMU alone: set u, doStep, get y.
+fn plant_alone(g: &mut Group, fmus: &Fmus, u: &[f64]) {
+    let (pu, py) = (fmus.pu, fmus.py);
+    let mut plant = Slave::new(&fmus.plant, "plant");
     g.bench_function("plant FMU: set u, doStep, get y", |b| {
         b.iter(|| {
             let mut out = [0.0];
-            for &uk in &u {
+            for &uk in u {
                 plant.inst.set_real(&[pu], &[black_box(uk)]).unwrap();
                 plant.step();
                 plant.inst.get_real(&[py], &mut out).unwrap();
@@ -139,8 +184,12 @@ fn fmu_step(c: &mut Criterion) {
             out[0]
         })
     });
+}
 
-    let mut est = Slave::new(&est_import, "estimator");
+/// The estimator FMU alone: set u and y (a recorded paper-example output), doStep, get the six estimates.
+fn estimator_alone(g: &mut Group, fmus: &Fmus, u: &[f64], y: &[f64]) {
+    let (eu, ey, outs) = (fmus.eu, fmus.ey, &fmus.outs);
+    let mut est = Slave::new(&fmus.est, "estimator");
     g.bench_function("estimator FMU: set u y, doStep, get 6 estimates", |b| {
         b.iter(|| {
             let mut out = [0.0; 6];
@@ -149,23 +198,27 @@ fn fmu_step(c: &mut Criterion) {
                     .set_real(&[eu, ey], &[black_box(u[k]), y[k]])
                     .unwrap();
                 est.step();
-                est.inst.get_real(&outs, &mut out).unwrap();
+                est.inst.get_real(outs, &mut out).unwrap();
             }
             out[0]
         })
     });
+}
 
-    let refine = vr(&est_import, "refine");
+/// The estimator FMU with `refine = true`, getting the six estimates and their six standard errors.
+fn estimator_refine(g: &mut Group, fmus: &Fmus, u: &[f64], y: &[f64]) {
+    let (eu, ey, est_import) = (fmus.eu, fmus.ey, &fmus.est);
+    let refine = vr(est_import, "refine");
     let se_outs: Vec<u32> = ["a1", "a2", "b0", "m2", "c1", "c2"]
         .iter()
-        .map(|n| vr(&est_import, n))
+        .map(|n| vr(est_import, n))
         .chain(
             ["a1_se", "a2_se", "b0_se", "m2_se", "c1_se", "c2_se"]
                 .iter()
-                .map(|n| vr(&est_import, n)),
+                .map(|n| vr(est_import, n)),
         )
         .collect();
-    let mut est = Slave::with(&est_import, "estimator-refine", |i| {
+    let mut est = Slave::with(est_import, "estimator-refine", |i| {
         i.set_boolean(&[refine], &[1]).expect("set refine");
     });
     g.bench_function(
@@ -184,25 +237,29 @@ fn fmu_step(c: &mut Criterion) {
             })
         },
     );
+}
 
-    let mut plant = Slave::new(&plant_import, "plant2");
-    let mut est = Slave::new(&est_import, "estimator2");
+/// The pair: plant get y(k), set u(k); estimator set u(k), y(k); both doStep; estimator get the six
+/// estimates.
+fn pair(g: &mut Group, fmus: &Fmus, u: &[f64]) {
+    let (pu, py, eu, ey, outs) = (fmus.pu, fmus.py, fmus.eu, fmus.ey, &fmus.outs);
+    let mut plant = Slave::new(&fmus.plant, "plant2");
+    let mut est = Slave::new(&fmus.est, "estimator2");
     g.bench_function("pair: plant + estimator, with get/set", |b| {
         b.iter(|| {
             let (mut yk, mut out) = ([0.0], [0.0; 6]);
-            for &uk in &u {
+            for &uk in u {
                 // y(k) at t_k, before the plant steps over sample k (as tests/python/cosim.py pairs them).
                 plant.inst.get_real(&[py], &mut yk).unwrap();
                 plant.inst.set_real(&[pu], &[black_box(uk)]).unwrap();
                 est.inst.set_real(&[eu, ey], &[uk, yk[0]]).unwrap();
                 plant.step();
                 est.step();
-                est.inst.get_real(&outs, &mut out).unwrap();
+                est.inst.get_real(outs, &mut out).unwrap();
             }
             out[0]
         })
     });
-    g.finish();
 }
 
 criterion_group!(benches, fmu_step);

@@ -111,9 +111,28 @@ fn refused(out: &Output, want: &[&str], ctx: &str) {
     }
 }
 
+/// Three valid rows, lines 2 to 4 after the header (a faulty row appended to them is line 5).
+const OK_ROWS: &str = "0,0.1,0\n1,0.2,0.1\n2,0.3,0.2\n";
+
 /// (case, content, pieces the message must contain besides the file name).
-fn hostile_cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>)> {
-    let ok_rows = "0,0.1,0\n1,0.2,0.1\n2,0.3,0.2\n";
+type Case = (&'static str, Vec<u8>, Vec<&'static str>);
+
+/// Every case, in the order their files are numbered.
+fn hostile_cases() -> Vec<Case> {
+    [
+        header_cases(),
+        cell_cases(),
+        time_cases(),
+        ragged_row_cases(),
+        byte_cases(),
+    ]
+    .into_iter()
+    .flatten()
+    .collect()
+}
+
+/// The header: no data at all, a missing, misnamed or duplicate column.
+fn header_cases() -> Vec<Case> {
     vec![
         ("empty", b"".to_vec(), vec!["empty"]),
         ("blank line only", b"\n".to_vec(), vec!["empty"]),
@@ -125,7 +144,7 @@ fn hostile_cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>)> {
         ),
         (
             "misnamed column",
-            format!("Time,u,y\n{ok_rows}").into_bytes(),
+            format!("Time,u,y\n{OK_ROWS}").into_bytes(),
             vec!["line 1", "'time'"],
         ),
         (
@@ -133,54 +152,66 @@ fn hostile_cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>)> {
             "time,u,y,u\n0,1,2,3\n".as_bytes().to_vec(),
             vec!["line 1", "'u'", "twice"],
         ),
+    ]
+}
+
+/// A data cell that is not a finite number.
+fn cell_cases() -> Vec<Case> {
+    vec![
         (
             "non-numeric cell",
-            format!("time,u,y\n{ok_rows}3,abc,0.4\n").into_bytes(),
+            format!("time,u,y\n{OK_ROWS}3,abc,0.4\n").into_bytes(),
             vec!["line 5", "column 'u'", "'abc'"],
         ),
         (
             "empty cell",
-            format!("time,u,y\n{ok_rows}3,,0.4\n").into_bytes(),
+            format!("time,u,y\n{OK_ROWS}3,,0.4\n").into_bytes(),
             vec!["line 5", "column 'u'"],
         ),
         (
             "quoted number",
-            format!("time,u,y\n{ok_rows}3,\"1.0\",0.4\n").into_bytes(),
+            format!("time,u,y\n{OK_ROWS}3,\"1.0\",0.4\n").into_bytes(),
             vec!["line 5", "column 'u'"],
         ),
         (
             "NaN",
-            format!("time,u,y\n{ok_rows}3,0.1,NaN\n").into_bytes(),
+            format!("time,u,y\n{OK_ROWS}3,0.1,NaN\n").into_bytes(),
             vec!["line 5", "column 'y'", "NaN"],
         ),
         (
             "nan lower case",
-            format!("time,u,y\n{ok_rows}3,nan,1\n").into_bytes(),
+            format!("time,u,y\n{OK_ROWS}3,nan,1\n").into_bytes(),
             vec!["line 5", "column 'u'"],
         ),
         (
             "infinity",
-            format!("time,u,y\n{ok_rows}3,0.1,-inf\n").into_bytes(),
+            format!("time,u,y\n{OK_ROWS}3,0.1,-inf\n").into_bytes(),
             vec!["line 5", "column 'y'"],
         ),
         (
             "overflow to infinity",
-            format!("time,u,y\n{ok_rows}3,1e999,1\n").into_bytes(),
+            format!("time,u,y\n{OK_ROWS}3,1e999,1\n").into_bytes(),
             vec!["line 5", "column 'u'", "'1e999' overflows a 64-bit float"],
         ),
+    ]
+}
+
+/// A time that is not a number or does not increase.
+fn time_cases() -> Vec<Case> {
+    vec![
         (
             "NaN time",
-            format!("time,u,y\n{ok_rows}NaN,0,1\n").into_bytes(),
+            format!("time,u,y\n{OK_ROWS}NaN,0,1\n").into_bytes(),
             vec!["line 5", "column 'time'"],
         ),
         (
             "equal time",
-            format!("time,u,y\n{ok_rows}2,0.1,1\n").into_bytes(),
+            format!("time,u,y\n{OK_ROWS}2,0.1,1\n").into_bytes(),
             vec!["line 5", "column 'time'", "does not increase"],
         ),
         (
             "decreasing time",
-            format!("time,u,y\n{ok_rows}1.5,0.1,1\n").into_bytes(),
+            format!("time,u,y\n{OK_ROWS}1.5,0.1,1\n").into_bytes(),
             vec!["line 5", "column 'time'", "does not increase"],
         ),
         (
@@ -188,14 +219,20 @@ fn hostile_cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>)> {
             "y,time,u\n0,0,0\n0,1,0\n0,0.5,0\n".as_bytes().to_vec(),
             vec!["line 4", "column 'time'"],
         ),
+    ]
+}
+
+/// A row with fewer or more fields than the header.
+fn ragged_row_cases() -> Vec<Case> {
+    vec![
         (
             "ragged row, short",
-            format!("time,u,y\n{ok_rows}3,0.1\n").into_bytes(),
+            format!("time,u,y\n{OK_ROWS}3,0.1\n").into_bytes(),
             vec!["line 5", "column 3 ('y'): missing", "2 fields", "3"],
         ),
         (
             "ragged row, two short",
-            format!("time,u,y\n{ok_rows}3\n").into_bytes(),
+            format!("time,u,y\n{OK_ROWS}3\n").into_bytes(),
             vec!["line 5", "column 2 ('u'): missing", "1 fields"],
         ),
         (
@@ -205,7 +242,7 @@ fn hostile_cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>)> {
         ),
         (
             "ragged row, long",
-            format!("time,u,y\n{ok_rows}3,0.1,1,7\n").into_bytes(),
+            format!("time,u,y\n{OK_ROWS}3,0.1,1,7\n").into_bytes(),
             vec!["line 5", "column 4: extra field '7'", "4 fields"],
         ),
         (
@@ -213,9 +250,15 @@ fn hostile_cases() -> Vec<(&'static str, Vec<u8>, Vec<&'static str>)> {
             "time,u,y\n0,1,2,\n".as_bytes().to_vec(),
             vec!["line 2", "column 4: extra field ''", "4 fields"],
         ),
+    ]
+}
+
+/// Bytes that are not UTF-8, and a line too long to be CSV.
+fn byte_cases() -> Vec<Case> {
+    vec![
         (
             "invalid UTF-8 in a cell",
-            [format!("time,u,y\n{ok_rows}3,0.").as_bytes(), b"\xe91,1\n"].concat(),
+            [format!("time,u,y\n{OK_ROWS}3,0.").as_bytes(), b"\xe91,1\n"].concat(),
             vec!["line 5", "byte 5", "not valid UTF-8"],
         ),
         (

@@ -191,17 +191,35 @@ fn not_provided(call: Call) -> bool {
 
 /// Call `call` on `f` with valid arguments; FMU states it needs are taken from `f` itself just before.
 fn call_valid(f: &mut Fmu, kind: Kind, call: Call) -> u32 {
+    match call {
+        Call::GetVersion
+        | Call::InstantiateCoSimulation
+        | Call::InstantiateModelExchange
+        | Call::InstantiateScheduledExecution => unreachable!("not a call on an instance"),
+        c if not_provided(c) => call_not_provided(f.c, c),
+        Call::SetDebugLogging
+        | Call::FreeInstance
+        | Call::EnterInitializationMode
+        | Call::ExitInitializationMode
+        | Call::Terminate
+        | Call::Reset
+        | Call::DoStep => call_lifecycle(f, call),
+        Call::GetFmuState => get_and_free_fmu_state(f.c),
+        Call::SetFmuState
+        | Call::FreeFmuState
+        | Call::SerializedFmuStateSize
+        | Call::SerializeFmuState
+        | Call::DeserializeFmuState => call_on_own_fmu_state(f, call),
+        _ => call_get_set(f.c, kind, call),
+    }
+}
+
+/// The calls that move an instance through its life (and fmi3SetDebugLogging), with valid arguments.
+fn call_lifecycle(f: &mut Fmu, call: Call) -> u32 {
     let c = f.c;
-    let (mut x, mut i, mut b) = (0.0f64, 0i32, 0u8);
     let (mut b1, mut b2, mut b3, mut t) = (0u8, 0u8, 0u8, 0.0f64);
-    let mut n = 0usize;
-    let one = |vr: Option<u32>| (vr.unwrap_or(0), usize::from(vr.is_some()));
     unsafe {
         match call {
-            Call::GetVersion
-            | Call::InstantiateCoSimulation
-            | Call::InstantiateModelExchange
-            | Call::InstantiateScheduledExecution => unreachable!("not a call on an instance"),
             Call::SetDebugLogging => fmi3SetDebugLogging(c, FMI3_TRUE, 0, null()),
             Call::FreeInstance => {
                 fmi3FreeInstance(c);
@@ -210,9 +228,24 @@ fn call_valid(f: &mut Fmu, kind: Kind, call: Call) -> u32 {
             }
             Call::EnterInitializationMode => f.enter(),
             Call::ExitInitializationMode => f.exit(),
-            Call::EnterEventMode => fmi3EnterEventMode(c),
             Call::Terminate => fmi3Terminate(c),
             Call::Reset => fmi3Reset(c),
+            Call::DoStep => {
+                let now = f.time();
+                fmi3DoStep(c, now, 1.0, FMI3_TRUE, &mut b1, &mut b2, &mut b3, &mut t)
+            }
+            other => unreachable!("{} is not a lifecycle call", other.name()),
+        }
+    }
+}
+
+/// A getter or setter with valid arguments: one variable of the types the FMUs have (if the FMU has one; an
+/// input for fmi3SetFloat64), no variable for the other types.
+fn call_get_set(c: Fmi3Instance, kind: Kind, call: Call) -> u32 {
+    let (mut x, mut i, mut b) = (0.0f64, 0i32, 0u8);
+    let one = |vr: Option<u32>| (vr.unwrap_or(0), usize::from(vr.is_some()));
+    unsafe {
+        match call {
             Call::GetFloat64 => {
                 let (vr, n) = one(kind.any(VarType::Real));
                 fmi3GetFloat64(c, &vr, n, &mut x, n)
@@ -228,6 +261,15 @@ fn call_valid(f: &mut Fmu, kind: Kind, call: Call) -> u32 {
             Call::SetFloat64 => fmi3SetFloat64(c, &kind.input(), 1, &0.25, 1),
             Call::SetInt32 => fmi3SetInt32(c, null(), 0, null(), 0),
             Call::SetBoolean => fmi3SetBoolean(c, null(), 0, null(), 0),
+            other => call_get_set_empty(c, other),
+        }
+    }
+}
+
+/// A getter or setter of a type the FMUs have no variable of: the valid call is the empty one.
+fn call_get_set_empty(c: Fmi3Instance, call: Call) -> u32 {
+    unsafe {
+        match call {
             Call::GetFloat32 => fmi3GetFloat32(c, null(), 0, null_mut(), 0),
             Call::GetInt8 => fmi3GetInt8(c, null(), 0, null_mut(), 0),
             Call::GetUInt8 => fmi3GetUInt8(c, null(), 0, null_mut(), 0),
@@ -250,58 +292,82 @@ fn call_valid(f: &mut Fmu, kind: Kind, call: Call) -> u32 {
             Call::SetString => fmi3SetString(c, null(), 0, null(), 0),
             Call::SetBinary => fmi3SetBinary(c, null(), 0, null(), null(), 0),
             Call::SetClock => fmi3SetClock(c, null(), 0, null()),
+            other => unreachable!("{} has no valid call in this table", other.name()),
+        }
+    }
+}
+
+/// fmi3GetFMUState, and the state freed again if it was taken.
+fn get_and_free_fmu_state(c: Fmi3Instance) -> u32 {
+    unsafe {
+        let mut s = null_mut();
+        let st = fmi3GetFMUState(c, &mut s);
+        if st == 0 {
+            assert_eq!(fmi3FreeFMUState(c, &mut s), 0);
+        }
+        st
+    }
+}
+
+/// A call on an FMU state `f` issued just before (set, free, size, serialise, deserialise); where the
+/// instance cannot issue one, fmi3SetFMUState(NULL) in the state it was in.
+fn call_on_own_fmu_state(f: &Fmu, call: Call) -> u32 {
+    let c = f.c;
+    unsafe {
+        let before = f.state();
+        let mut s = null_mut();
+        // Taking a state is legal in every state these tests reach except the forced ones.
+        if fmi3GetFMUState(c, &mut s) != 0 {
+            f.force(before);
+            return fmi3SetFMUState(c, null_mut());
+        }
+        let mut size = 0usize;
+        let st = match call {
+            Call::SetFmuState => fmi3SetFMUState(c, s),
+            Call::FreeFmuState => fmi3FreeFMUState(c, &mut s),
+            Call::SerializedFmuStateSize => fmi3SerializedFMUStateSize(c, s, &mut size),
+            Call::SerializeFmuState => {
+                assert_eq!(fmi3SerializedFMUStateSize(c, s, &mut size), 0);
+                let mut buf = vec![0u8; size];
+                fmi3SerializeFMUState(c, s, buf.as_mut_ptr(), size)
+            }
+            _ => deserialize_and_free(c, s),
+        };
+        if !s.is_null() {
+            fmi3FreeFMUState(c, &mut s);
+        }
+        st
+    }
+}
+
+/// fmi3DeserializeFMUState of what `s` serialises to; the new state is freed again.
+fn deserialize_and_free(c: Fmi3Instance, s: Fmi3FmuState) -> u32 {
+    unsafe {
+        let mut size = 0usize;
+        assert_eq!(fmi3SerializedFMUStateSize(c, s, &mut size), 0);
+        let mut buf = vec![0u8; size];
+        assert_eq!(fmi3SerializeFMUState(c, s, buf.as_mut_ptr(), size), 0);
+        let mut other = null_mut();
+        let st = fmi3DeserializeFMUState(c, buf.as_ptr(), size, &mut other);
+        if st == 0 {
+            fmi3FreeFMUState(c, &mut other);
+        }
+        st
+    }
+}
+
+/// A function the FMUs do not provide (`not_provided`), with arguments as valid as its signature allows.
+fn call_not_provided(c: Fmi3Instance, call: Call) -> u32 {
+    let (mut b, mut b1, mut b2, mut b3, mut t) = (0u8, 0u8, 0u8, 0u8, 0.0f64);
+    let mut n = 0usize;
+    unsafe {
+        match call {
+            Call::EnterEventMode => fmi3EnterEventMode(c),
             Call::GetNumberOfVariableDependencies => {
                 fmi3GetNumberOfVariableDependencies(c, 1, &mut n)
             }
             Call::GetVariableDependencies => {
                 fmi3GetVariableDependencies(c, 1, null_mut(), null_mut(), null_mut(), null_mut(), 0)
-            }
-            Call::GetFmuState => {
-                let mut s = null_mut();
-                let st = fmi3GetFMUState(c, &mut s);
-                if st == 0 {
-                    assert_eq!(fmi3FreeFMUState(c, &mut s), 0);
-                }
-                st
-            }
-            Call::SetFmuState
-            | Call::FreeFmuState
-            | Call::SerializedFmuStateSize
-            | Call::SerializeFmuState
-            | Call::DeserializeFmuState => {
-                let before = f.state();
-                let mut s = null_mut();
-                // Taking a state is legal in every state these tests reach except the forced ones.
-                if fmi3GetFMUState(c, &mut s) != 0 {
-                    f.force(before);
-                    return fmi3SetFMUState(c, null_mut());
-                }
-                let mut size = 0usize;
-                let st = match call {
-                    Call::SetFmuState => fmi3SetFMUState(c, s),
-                    Call::FreeFmuState => fmi3FreeFMUState(c, &mut s),
-                    Call::SerializedFmuStateSize => fmi3SerializedFMUStateSize(c, s, &mut size),
-                    Call::SerializeFmuState => {
-                        assert_eq!(fmi3SerializedFMUStateSize(c, s, &mut size), 0);
-                        let mut buf = vec![0u8; size];
-                        fmi3SerializeFMUState(c, s, buf.as_mut_ptr(), size)
-                    }
-                    _ => {
-                        assert_eq!(fmi3SerializedFMUStateSize(c, s, &mut size), 0);
-                        let mut buf = vec![0u8; size];
-                        assert_eq!(fmi3SerializeFMUState(c, s, buf.as_mut_ptr(), size), 0);
-                        let mut other = null_mut();
-                        let st = fmi3DeserializeFMUState(c, buf.as_ptr(), size, &mut other);
-                        if st == 0 {
-                            fmi3FreeFMUState(c, &mut other);
-                        }
-                        st
-                    }
-                };
-                if !s.is_null() {
-                    fmi3FreeFMUState(c, &mut s);
-                }
-                st
             }
             Call::GetDirectionalDerivative => {
                 fmi3GetDirectionalDerivative(c, null(), 0, null(), 0, null(), 0, null_mut(), 0)
@@ -311,6 +377,26 @@ fn call_valid(f: &mut Fmu, kind: Kind, call: Call) -> u32 {
             }
             Call::EnterConfigurationMode => fmi3EnterConfigurationMode(c),
             Call::ExitConfigurationMode => fmi3ExitConfigurationMode(c),
+            Call::EvaluateDiscreteStates => fmi3EvaluateDiscreteStates(c),
+            Call::UpdateDiscreteStates => {
+                fmi3UpdateDiscreteStates(c, &mut b1, &mut b2, &mut b3, &mut b, &mut b, &mut t)
+            }
+            Call::EnterStepMode => fmi3EnterStepMode(c),
+            Call::GetOutputDerivatives => {
+                fmi3GetOutputDerivatives(c, null(), 0, null(), null_mut(), 0)
+            }
+            Call::ActivateModelPartition => fmi3ActivateModelPartition(c, 1, 0.0),
+            other => call_clock_or_model_exchange(c, other),
+        }
+    }
+}
+
+/// A clock or model-exchange function (none provided), with arguments as valid as its signature allows.
+fn call_clock_or_model_exchange(c: Fmi3Instance, call: Call) -> u32 {
+    let (mut b1, mut b2) = (0u8, 0u8);
+    let mut n = 0usize;
+    unsafe {
+        match call {
             Call::GetIntervalDecimal => {
                 fmi3GetIntervalDecimal(c, null(), 0, null_mut(), null_mut())
             }
@@ -323,14 +409,6 @@ fn call_valid(f: &mut Fmu, kind: Kind, call: Call) -> u32 {
             Call::SetIntervalFraction => fmi3SetIntervalFraction(c, null(), 0, null(), null()),
             Call::SetShiftDecimal => fmi3SetShiftDecimal(c, null(), 0, null()),
             Call::SetShiftFraction => fmi3SetShiftFraction(c, null(), 0, null(), null()),
-            Call::EvaluateDiscreteStates => fmi3EvaluateDiscreteStates(c),
-            Call::UpdateDiscreteStates => {
-                fmi3UpdateDiscreteStates(c, &mut b1, &mut b2, &mut b3, &mut b, &mut b, &mut t)
-            }
-            Call::EnterStepMode => fmi3EnterStepMode(c),
-            Call::GetOutputDerivatives => {
-                fmi3GetOutputDerivatives(c, null(), 0, null(), null_mut(), 0)
-            }
             Call::EnterContinuousTimeMode => fmi3EnterContinuousTimeMode(c),
             Call::CompletedIntegratorStep => fmi3CompletedIntegratorStep(c, 1, &mut b1, &mut b2),
             Call::SetTime => fmi3SetTime(c, 1.0),
@@ -345,11 +423,7 @@ fn call_valid(f: &mut Fmu, kind: Kind, call: Call) -> u32 {
             }
             Call::GetNumberOfEventIndicators => fmi3GetNumberOfEventIndicators(c, &mut n),
             Call::GetNumberOfContinuousStates => fmi3GetNumberOfContinuousStates(c, &mut n),
-            Call::ActivateModelPartition => fmi3ActivateModelPartition(c, 1, 0.0),
-            Call::DoStep => {
-                let now = f.time();
-                fmi3DoStep(c, now, 1.0, FMI3_TRUE, &mut b1, &mut b2, &mut b3, &mut t)
-            }
+            other => unreachable!("{} is provided", other.name()),
         }
     }
 }
@@ -451,7 +525,17 @@ fn every_call_in_every_state_follows_the_table() {
 #[test]
 fn instantiation_refusals_log_their_reason_and_return_null() {
     let sink: Sink = Mutex::default();
-    let env = &sink as *const Sink as *mut c_void;
+    co_simulation_refusals_log_their_reason(&sink);
+    model_exchange_is_refused_with_its_reason(&sink);
+    // No logger at all is allowed in FMI 3.0: the instance works, silently.
+    instance_without_a_logger_works();
+    assert_eq!(unsafe { CStr::from_ptr(fmi3GetVersion()) }, c"3.0");
+}
+
+/// fmi3InstantiateCoSimulation with a foreign token, an empty name, a NULL token and event mode requested:
+/// NULL, and the reason logged into `sink`.
+fn co_simulation_refusals_log_their_reason(sink: &Sink) {
+    let env = sink as *const Sink as *mut c_void;
     let token = Kind::Plant.guid();
     let cases: [(&CStr, *const c_char, u8, &str); 4] = [
         (
@@ -488,6 +572,12 @@ fn instantiation_refusals_log_their_reason_and_return_null() {
             "{last:?}"
         );
     }
+}
+
+/// fmi3InstantiateModelExchange: NULL, "co-simulation only" logged into `sink`.
+fn model_exchange_is_refused_with_its_reason(sink: &Sink) {
+    let env = sink as *const Sink as *mut c_void;
+    let token = Kind::Plant.guid();
     let me = unsafe {
         fmi3InstantiateModelExchange(
             c"p".as_ptr(),
@@ -508,7 +598,11 @@ fn instantiation_refusals_log_their_reason_and_return_null() {
             .2
             .contains("co-simulation only")
     );
-    // No logger at all is allowed in FMI 3.0: the instance works, silently.
+}
+
+/// An instance without a logger (and without an environment) is made and answers calls.
+fn instance_without_a_logger_works() {
+    let token = Kind::Plant.guid();
     let c = unsafe {
         fmi3InstantiateCoSimulation(
             c"quiet".as_ptr(),
@@ -528,7 +622,6 @@ fn instantiation_refusals_log_their_reason_and_return_null() {
     assert!(!c.is_null());
     assert_eq!(unsafe { fmi3EnterEventMode(c) }, 3);
     unsafe { fmi3FreeInstance(c) };
-    assert_eq!(unsafe { CStr::from_ptr(fmi3GetVersion()) }, c"3.0");
 }
 
 /// The FMI 2.0 exports on the same model and inputs, for the bit-for-bit comparison.
@@ -649,15 +742,8 @@ impl Rng {
     }
 }
 
-/// One random call with random, often hostile, arguments. Arrays are real buffers or NULL; counts may
-/// disagree with them only where the pointer is NULL (the layer cannot know a buffer's length, which the
-/// standard makes the importer's promise).
-fn random_call(
-    f: &mut Fmu,
-    kind: Kind,
-    rng: &mut Rng,
-    states: &mut Vec<Fmi3FmuState>,
-) -> (Call, u32) {
+/// The calls the fuzzer draws from: every function on an instance but fmi3FreeInstance.
+fn draw_call(rng: &mut Rng) -> Call {
     let calls: Vec<Call> = Call::ALL
         .iter()
         .copied()
@@ -672,36 +758,85 @@ fn random_call(
             )
         })
         .collect();
-    let call = calls[rng.below(calls.len() as u64) as usize];
+    calls[rng.below(calls.len() as u64) as usize]
+}
+
+/// The value references and values a random getter or setter passes, drawn for every call whichever it is
+/// (the draws are the test's sequence).
+struct Args {
+    vrs: Vec<u32>,
+    /// The values' count: the references' count, now and then one more.
+    n_values: usize,
+    xs: Vec<f64>,
+    is: Vec<i32>,
+    bs: Vec<u8>,
+    /// Pass NULL for the value references.
+    null_vr: bool,
+}
+
+impl Args {
+    fn draw(kind: Kind, rng: &mut Rng) -> Args {
+        let vars = kind.variables();
+        let mut vrs: Vec<u32> = (0..rng.below(4))
+            .map(|_| match rng.below(4) {
+                0 => rng.below(300) as u32,
+                _ => vars[rng.below(vars.len() as u64) as usize].vr,
+            })
+            .collect();
+        if rng.below(10) == 0 {
+            vrs.push(backlash::fmi3::TIME_VR);
+        }
+        let n = vrs.len();
+        let n_values = if rng.below(6) == 0 { n + 1 } else { n };
+        let mut xs = vec![0.0f64; n + 1];
+        for x in xs.iter_mut() {
+            *x = rng.f64();
+        }
+        let is = vec![rng.below(5) as i32; n + 1];
+        let bs = vec![rng.below(3) as u8; n + 1];
+        let null_vr = rng.below(8) == 0;
+        Args {
+            vrs,
+            n_values,
+            xs,
+            is,
+            bs,
+            null_vr,
+        }
+    }
+
+    fn vr_ptr(&self) -> *const u32 {
+        if self.null_vr {
+            null()
+        } else {
+            self.vrs.as_ptr()
+        }
+    }
+}
+
+/// One random call with random, often hostile, arguments. Arrays are real buffers or NULL; counts may
+/// disagree with them only where the pointer is NULL (the layer cannot know a buffer's length, which the
+/// standard makes the importer's promise).
+fn random_call(
+    f: &mut Fmu,
+    kind: Kind,
+    rng: &mut Rng,
+    states: &mut Vec<Fmi3FmuState>,
+) -> (Call, u32) {
+    let call = draw_call(rng);
     let c = f.c;
-    let vars = kind.variables();
-    let mut vrs: Vec<u32> = (0..rng.below(4))
-        .map(|_| match rng.below(4) {
-            0 => rng.below(300) as u32,
-            _ => vars[rng.below(vars.len() as u64) as usize].vr,
-        })
-        .collect();
-    if rng.below(10) == 0 {
-        vrs.push(backlash::fmi3::TIME_VR);
-    }
-    let n = vrs.len();
-    let n_values = if rng.below(6) == 0 { n + 1 } else { n };
-    let mut xs = vec![0.0f64; n + 1];
-    for x in xs.iter_mut() {
-        *x = rng.f64();
-    }
-    let mut is = vec![rng.below(5) as i32; n + 1];
-    let mut bs = vec![rng.below(3) as u8; n + 1];
-    let null_vr = rng.below(8) == 0;
-    let vr_ptr = if null_vr { null() } else { vrs.as_ptr() };
+    let mut a = Args::draw(kind, rng);
+    let (vr, n, nv) = (a.vr_ptr(), a.vrs.len(), a.n_values);
+    // Not a state any instance issued: the bytes of the value buffer.
+    let bogus: Fmi3FmuState = a.xs.as_mut_ptr().cast();
     let st = unsafe {
         match call {
-            Call::GetFloat64 => fmi3GetFloat64(c, vr_ptr, n, xs.as_mut_ptr(), n_values),
-            Call::SetFloat64 => fmi3SetFloat64(c, vr_ptr, n, xs.as_ptr(), n_values),
-            Call::GetInt32 => fmi3GetInt32(c, vr_ptr, n, is.as_mut_ptr(), n_values),
-            Call::SetInt32 => fmi3SetInt32(c, vr_ptr, n, is.as_ptr(), n_values),
-            Call::GetBoolean => fmi3GetBoolean(c, vr_ptr, n, bs.as_mut_ptr(), n_values),
-            Call::SetBoolean => fmi3SetBoolean(c, vr_ptr, n, bs.as_ptr(), n_values),
+            Call::GetFloat64 => fmi3GetFloat64(c, vr, n, a.xs.as_mut_ptr(), nv),
+            Call::SetFloat64 => fmi3SetFloat64(c, vr, n, a.xs.as_ptr(), nv),
+            Call::GetInt32 => fmi3GetInt32(c, vr, n, a.is.as_mut_ptr(), nv),
+            Call::SetInt32 => fmi3SetInt32(c, vr, n, a.is.as_ptr(), nv),
+            Call::GetBoolean => fmi3GetBoolean(c, vr, n, a.bs.as_mut_ptr(), nv),
+            Call::SetBoolean => fmi3SetBoolean(c, vr, n, a.bs.as_ptr(), nv),
             Call::EnterInitializationMode => fmi3EnterInitializationMode(
                 c,
                 rng.below(2) as u8,
@@ -710,102 +845,141 @@ fn random_call(
                 rng.below(2) as u8,
                 rng.f64(),
             ),
-            Call::DoStep => {
-                let (mut e, mut t, mut r, mut l) = (0u8, 0u8, 0u8, 0.0);
-                let now = if rng.below(4) == 0 {
-                    rng.f64()
-                } else {
-                    f.time()
-                };
-                let h = if rng.below(4) == 0 {
-                    rng.f64()
-                } else {
-                    [1.0, 0.5, 2.0, 0.3][rng.below(4) as usize]
-                };
-                if rng.below(10) == 0 {
-                    fmi3DoStep(c, now, h, 0, null_mut(), &mut t, &mut r, &mut l)
-                } else {
-                    fmi3DoStep(c, now, h, 0, &mut e, &mut t, &mut r, &mut l)
-                }
-            }
-            Call::GetFmuState => {
-                let mut s = if rng.below(3) == 0 && !states.is_empty() {
-                    states[rng.below(states.len() as u64) as usize]
-                } else {
-                    null_mut()
-                };
-                let st = fmi3GetFMUState(c, &mut s);
-                if st == 0 && !states.contains(&s) {
-                    states.push(s);
-                }
-                st
-            }
-            Call::SetFmuState => {
-                let s = match (rng.below(3), states.is_empty()) {
-                    (0, _) | (_, true) => xs.as_mut_ptr().cast(),
-                    _ => states[rng.below(states.len() as u64) as usize],
-                };
-                fmi3SetFMUState(c, s)
-            }
-            Call::FreeFmuState => {
-                if states.is_empty() || rng.below(4) == 0 {
-                    let mut bogus: Fmi3FmuState = xs.as_mut_ptr().cast();
-                    fmi3FreeFMUState(c, &mut bogus)
-                } else {
-                    let mut s = states.swap_remove(rng.below(states.len() as u64) as usize);
-                    fmi3FreeFMUState(c, &mut s)
-                }
-            }
+            Call::DoStep => random_step(f, rng),
+            Call::GetFmuState => random_get_state(c, rng, states),
+            Call::SetFmuState => random_set_state(c, rng, states, bogus),
+            Call::FreeFmuState => random_free_state(c, rng, states, bogus),
             Call::SerializeFmuState | Call::SerializedFmuStateSize | Call::DeserializeFmuState => {
-                let s = states.first().copied().unwrap_or(null_mut());
-                let mut size = 0;
-                let st = fmi3SerializedFMUStateSize(c, s, &mut size);
-                if st != 0 || call == Call::SerializedFmuStateSize {
-                    st
-                } else {
-                    let mut buf = vec![0u8; size];
-                    let st = fmi3SerializeFMUState(c, s, buf.as_mut_ptr(), size);
-                    if st != 0 || call == Call::SerializeFmuState {
-                        st
-                    } else {
-                        if rng.below(2) == 0 && size > 0 {
-                            let k = rng.below(size as u64) as usize;
-                            buf[k] = buf[k].wrapping_add(1 + rng.below(200) as u8);
-                        }
-                        let cut = if rng.below(4) == 0 { size / 2 } else { size };
-                        let mut out = null_mut();
-                        let st = fmi3DeserializeFMUState(c, buf.as_ptr(), cut, &mut out);
-                        if st == 0 {
-                            states.push(out);
-                        }
-                        st
-                    }
-                }
+                random_serialization(c, call, rng, states)
             }
-            Call::SetDebugLogging => {
-                let cats = [
-                    c"logAll".as_ptr(),
-                    c"logCalls".as_ptr(),
-                    c"nonsense".as_ptr(),
-                    null(),
-                ];
-                let k = rng.below(5) as usize;
-                let n = k.min(4);
-                fmi3SetDebugLogging(
-                    c,
-                    rng.below(2) as u8,
-                    n,
-                    if rng.below(8) == 0 {
-                        null()
-                    } else {
-                        cats.as_ptr()
-                    },
-                )
-            }
+            Call::SetDebugLogging => random_debug_logging(c, rng),
             _ => call_valid(f, kind, call),
         }
     };
     (call, st)
+}
+
+/// fmi3DoStep, now and then at a random time and with a random step size or a NULL output pointer.
+fn random_step(f: &Fmu, rng: &mut Rng) -> u32 {
+    let (mut e, mut t, mut r, mut l) = (0u8, 0u8, 0u8, 0.0);
+    let now = if rng.below(4) == 0 {
+        rng.f64()
+    } else {
+        f.time()
+    };
+    let h = if rng.below(4) == 0 {
+        rng.f64()
+    } else {
+        [1.0, 0.5, 2.0, 0.3][rng.below(4) as usize]
+    };
+    unsafe {
+        if rng.below(10) == 0 {
+            fmi3DoStep(f.c, now, h, 0, null_mut(), &mut t, &mut r, &mut l)
+        } else {
+            fmi3DoStep(f.c, now, h, 0, &mut e, &mut t, &mut r, &mut l)
+        }
+    }
+}
+
+/// fmi3GetFMUState into a new pointer or over a state already issued; a new state joins `states`.
+fn random_get_state(c: Fmi3Instance, rng: &mut Rng, states: &mut Vec<Fmi3FmuState>) -> u32 {
+    let mut s = if rng.below(3) == 0 && !states.is_empty() {
+        states[rng.below(states.len() as u64) as usize]
+    } else {
+        null_mut()
+    };
+    let st = unsafe { fmi3GetFMUState(c, &mut s) };
+    if st == 0 && !states.contains(&s) {
+        states.push(s);
+    }
+    st
+}
+
+/// fmi3SetFMUState of an issued state or of `bogus`.
+fn random_set_state(
+    c: Fmi3Instance,
+    rng: &mut Rng,
+    states: &[Fmi3FmuState],
+    bogus: Fmi3FmuState,
+) -> u32 {
+    let s = match (rng.below(3), states.is_empty()) {
+        (0, _) | (_, true) => bogus,
+        _ => states[rng.below(states.len() as u64) as usize],
+    };
+    unsafe { fmi3SetFMUState(c, s) }
+}
+
+/// fmi3FreeFMUState of an issued state (which leaves `states`) or of `bogus`.
+fn random_free_state(
+    c: Fmi3Instance,
+    rng: &mut Rng,
+    states: &mut Vec<Fmi3FmuState>,
+    mut bogus: Fmi3FmuState,
+) -> u32 {
+    unsafe {
+        if states.is_empty() || rng.below(4) == 0 {
+            fmi3FreeFMUState(c, &mut bogus)
+        } else {
+            let mut s = states.swap_remove(rng.below(states.len() as u64) as usize);
+            fmi3FreeFMUState(c, &mut s)
+        }
+    }
+}
+
+/// The serialisation calls on the first issued state, up to `call`: size, serialise, then deserialise
+/// the bytes, now and then corrupted or cut in half (a new state joins `states`).
+fn random_serialization(
+    c: Fmi3Instance,
+    call: Call,
+    rng: &mut Rng,
+    states: &mut Vec<Fmi3FmuState>,
+) -> u32 {
+    let s = states.first().copied().unwrap_or(null_mut());
+    let mut size = 0;
+    let st = unsafe { fmi3SerializedFMUStateSize(c, s, &mut size) };
+    if st != 0 || call == Call::SerializedFmuStateSize {
+        return st;
+    }
+    let mut buf = vec![0u8; size];
+    let st = unsafe { fmi3SerializeFMUState(c, s, buf.as_mut_ptr(), size) };
+    if st != 0 || call == Call::SerializeFmuState {
+        return st;
+    }
+    if rng.below(2) == 0 && size > 0 {
+        let k = rng.below(size as u64) as usize;
+        buf[k] = buf[k].wrapping_add(1 + rng.below(200) as u8);
+    }
+    let cut = if rng.below(4) == 0 { size / 2 } else { size };
+    let mut out = null_mut();
+    let st = unsafe { fmi3DeserializeFMUState(c, buf.as_ptr(), cut, &mut out) };
+    if st == 0 {
+        states.push(out);
+    }
+    st
+}
+
+/// fmi3SetDebugLogging with known, unknown and NULL categories, or a NULL array.
+fn random_debug_logging(c: Fmi3Instance, rng: &mut Rng) -> u32 {
+    let cats = [
+        c"logAll".as_ptr(),
+        c"logCalls".as_ptr(),
+        c"nonsense".as_ptr(),
+        null(),
+    ];
+    let k = rng.below(5) as usize;
+    let n = k.min(4);
+    unsafe {
+        fmi3SetDebugLogging(
+            c,
+            rng.below(2) as u8,
+            n,
+            if rng.below(8) == 0 {
+                null()
+            } else {
+                cats.as_ptr()
+            },
+        )
+    }
 }
 
 fn fuzz(kind: Kind, calls: u64, seed: u64) {

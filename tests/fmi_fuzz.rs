@@ -111,6 +111,48 @@ struct Blob {
     kind: Kind,
 }
 
+/// What one call did, for the checks after it.
+struct CallDid<'a> {
+    call: Call,
+    status: Option<u32>,
+    pre: State,
+    post: State,
+    /// The log lines the call wrote.
+    new_log: &'a [Entry],
+    /// The instance has a logger (else it logs nothing).
+    has_sink: bool,
+}
+
+/// What bytes handed to fmi2DeSerializeFMUstate are, and so what must happen to them.
+#[derive(Debug, PartialEq)]
+enum What {
+    Intact(Kind),
+    Truncated,
+    Corrupted,
+    /// Still valid JSON: one number replaced by another (the checks beyond the syntax).
+    Perturbed,
+    Random,
+    Empty,
+    NullHuge,
+}
+
+/// Why `inst` refuses the state `bytes`, and where each offending value sits (serde_json writes NaN and
+/// infinities as null).
+fn refusal_reason(inst: &Instance, bytes: &[u8]) -> String {
+    let mut reason = inst.check_state_bytes(bytes).err().unwrap_or_default();
+    let text = String::from_utf8_lossy(bytes).into_owned();
+    for (at, _) in text
+        .match_indices("null")
+        .filter(|(at, _)| !text[..*at].ends_with("\"stop_time\":"))
+    {
+        reason.push_str(&format!(
+            " | ...{}",
+            &text[at.saturating_sub(90)..(at + 4).min(text.len())]
+        ));
+    }
+    reason
+}
+
 #[derive(Default, Debug)]
 struct Stats {
     calls: [u64; 2],
@@ -315,35 +357,13 @@ impl Fuzzer {
         } else {
             Kind::Estimator
         };
-        let good_guid = self.chance(0.93);
-        let guid: *const c_char = if good_guid {
-            kind.guid().as_ptr()
-        } else {
-            self.pick(&[
-                null(),
-                c"".as_ptr(),
-                c"{aec9594e-c19e-4bf7-b4ce-9d1bba6d029}".as_ptr(),
-                c"BacklashPlant".as_ptr(),
-            ])
-        };
+        let (good_guid, guid) = self.draw_guid(kind);
         let ty = if self.chance(0.95) {
             FMI2_CO_SIMULATION
         } else {
             self.pick(&[FMI2_MODEL_EXCHANGE, 2, u32::MAX])
         };
-        let names: [&CStr; 5] = [c"a", c"plant-1", c"estimator \u{e9}", c"", c"x"];
-        let name_i = self.below(names.len() as u64) as usize;
-        let null_name = self.chance(0.03);
-        let name_ptr = if null_name {
-            null()
-        } else if self.chance(0.02) {
-            c"\xff\xfe".as_ptr()
-        } else {
-            names[name_i].as_ptr()
-        };
-        let name_ok = !null_name
-            && unsafe { CStr::from_ptr(name_ptr) }.to_str().is_ok()
-            && !unsafe { CStr::from_ptr(name_ptr) }.is_empty();
+        let (name_ptr, name_ok) = self.draw_name();
         let cb_mode = self.below(20); // 0: NULL callbacks, 1: no logger, else the recorder
         let sink: Box<Sink> = Box::default();
         let mut cb = callbacks(&sink);
@@ -392,6 +412,40 @@ impl Fuzzer {
         }
     }
 
+    /// (whether it is `kind`'s, the GUID to instantiate with): mostly `kind`'s, else NULL, empty or wrong.
+    fn draw_guid(&mut self, kind: Kind) -> (bool, *const c_char) {
+        let good_guid = self.chance(0.93);
+        let guid: *const c_char = if good_guid {
+            kind.guid().as_ptr()
+        } else {
+            self.pick(&[
+                null(),
+                c"".as_ptr(),
+                c"{aec9594e-c19e-4bf7-b4ce-9d1bba6d029}".as_ptr(),
+                c"BacklashPlant".as_ptr(),
+            ])
+        };
+        (good_guid, guid)
+    }
+
+    /// (the instance name to instantiate with, whether it is acceptable): now and then NULL or not UTF-8.
+    fn draw_name(&mut self) -> (*const c_char, bool) {
+        let names: [&CStr; 5] = [c"a", c"plant-1", c"estimator \u{e9}", c"", c"x"];
+        let name_i = self.below(names.len() as u64) as usize;
+        let null_name = self.chance(0.03);
+        let name_ptr = if null_name {
+            null()
+        } else if self.chance(0.02) {
+            c"\xff\xfe".as_ptr()
+        } else {
+            names[name_i].as_ptr()
+        };
+        let name_ok = !null_name
+            && unsafe { CStr::from_ptr(name_ptr) }.to_str().is_ok()
+            && !unsafe { CStr::from_ptr(name_ptr) }.is_empty();
+        (name_ptr, name_ok)
+    }
+
     // ------------------------------------------------------------------------------------ the calls
 
     /// One random call on slot `i` (or instantiation into it when empty).
@@ -399,16 +453,7 @@ impl Fuzzer {
         self.step += 1;
         let i = self.below(SLOTS as u64) as usize;
         if self.slots[i].is_none() {
-            if self.chance(0.02) {
-                // The component-less functions, and freeing NULL.
-                unsafe {
-                    assert_eq!(CStr::from_ptr(fmi2GetTypesPlatform()), c"default");
-                    assert_eq!(CStr::from_ptr(fmi2GetVersion()), c"2.0");
-                    fmi2FreeInstance(null_mut());
-                }
-                return;
-            }
-            self.instantiate(i);
+            self.fill(i);
             return;
         }
         let (c, kind, pre) = {
@@ -416,24 +461,7 @@ impl Fuzzer {
             (s.c, s.kind, s.state())
         };
         let log0 = self.slots[i].as_ref().unwrap().log_len();
-        let happy = !self.chance(self.chaos);
-        self.valid = happy && !self.chance(0.1);
-        let call = if happy {
-            self.happy(kind, pre)
-        } else {
-            self.pick(&Call::ALL)
-        };
-        let call = match call {
-            // Not instance functions: keep the draw on the instance.
-            Call::GetTypesPlatform | Call::GetVersion | Call::Instantiate => Call::GetRealStatus,
-            c => c,
-        };
-        // Keep the pool of saved states bounded.
-        let call = if self.states.len() > 24 && self.chance(0.5) {
-            Call::FreeFmuState
-        } else {
-            call
-        };
+        let call = self.draw_call(kind, pre);
         self.stats.calls[kind.idx()] += 1;
         let (status, desc) = self.perform(i, c, kind, pre, call);
         self.note(format!(
@@ -451,7 +479,71 @@ impl Fuzzer {
         let has_sink = slot.sink.is_some();
         let logs_discards = slot.inst().log.discards;
         let name = slot.name.clone();
-        for e in &new_log {
+        self.check_log(kind, &name, &new_log);
+        let did = CallDid {
+            call,
+            status,
+            pre,
+            post,
+            new_log: &new_log,
+            has_sink,
+        };
+        if let Some(s) = status {
+            self.check_status(&did, s);
+        }
+        self.check_transition(&did, logs_discards);
+        let slot = self.slots[i].as_ref().unwrap();
+        if post == State::StepComplete || post == State::Terminated {
+            let t = slot.inst().time();
+            if t.is_finite() && t > self.stats.max_time {
+                self.stats.max_time = t;
+            }
+        }
+        if slot.log_len() > 4096 {
+            slot.trim_log();
+        }
+    }
+
+    /// An empty slot: now and then the component-less functions (and freeing NULL), else an instantiation.
+    fn fill(&mut self, i: usize) {
+        if self.chance(0.02) {
+            unsafe {
+                assert_eq!(CStr::from_ptr(fmi2GetTypesPlatform()), c"default");
+                assert_eq!(CStr::from_ptr(fmi2GetVersion()), c"2.0");
+                fmi2FreeInstance(null_mut());
+            }
+            return;
+        }
+        self.instantiate(i);
+    }
+
+    /// The next call on an instance of `kind` in `state`: mostly the happy path, `chaos` of the time any of
+    /// the 34; sets whether its arguments are to be valid.
+    fn draw_call(&mut self, kind: Kind, state: State) -> Call {
+        let happy = !self.chance(self.chaos);
+        self.valid = happy && !self.chance(0.1);
+        let call = if happy {
+            self.happy(kind, state)
+        } else {
+            self.pick(&Call::ALL)
+        };
+        let call = match call {
+            // Not instance functions: keep the draw on the instance.
+            Call::GetTypesPlatform | Call::GetVersion | Call::Instantiate => Call::GetRealStatus,
+            c => c,
+        };
+        // Keep the pool of saved states bounded.
+        if self.states.len() > 24 && self.chance(0.5) {
+            Call::FreeFmuState
+        } else {
+            call
+        }
+    }
+
+    /// The log lines a call wrote: formats without conversions, declared categories, the instance's name;
+    /// a panic caught inside the layer is counted (and fails the strict run).
+    fn check_log(&mut self, kind: Kind, name: &str, new_log: &[Entry]) {
+        for e in new_log {
             if e.message.starts_with("<format") {
                 self.fail(&format!("logger format: {e:?}"));
             }
@@ -477,39 +569,50 @@ impl Fuzzer {
                 }
             }
         }
-        if let Some(s) = status {
-            match s {
-                0 => self.stats.ok += 1,
-                2 => self.stats.discard += 1,
-                3 => self.stats.error += 1,
-                1 => {}
-                _ => self.fail(&format!("status {s} from {}", call.name())),
+    }
+
+    /// The status `s` of a call: a valid one, fmi2Error for an illegal call, and fmi2Error leaves the
+    /// instance in the error state with its reason logged.
+    fn check_status(&mut self, did: &CallDid, s: u32) {
+        let (call, pre, post) = (did.call, did.pre, did.post);
+        match s {
+            0 => self.stats.ok += 1,
+            2 => self.stats.discard += 1,
+            3 => self.stats.error += 1,
+            1 => {}
+            _ => self.fail(&format!("status {s} from {}", call.name())),
+        }
+        if !call.allowed_in(pre) && s != ERROR {
+            self.fail(&format!(
+                "{} is illegal in '{}' but returned {s}",
+                call.name(),
+                pre.name()
+            ));
+        }
+        if s == ERROR {
+            if post != State::Error {
+                self.fail(&format!("fmi2Error left the instance in '{}'", post.name()));
             }
-            if !call.allowed_in(pre) && s != ERROR {
+            if did.has_sink
+                && !did.new_log.iter().any(|e| {
+                    e.status == ERROR
+                        && e.category == "logStatusError"
+                        && e.message.starts_with(&format!("{}: ", call.name()))
+                })
+            {
                 self.fail(&format!(
-                    "{} is illegal in '{}' but returned {s}",
+                    "fmi2Error from {} without a reason: {:?}",
                     call.name(),
-                    pre.name()
+                    did.new_log
                 ));
             }
-            if s == ERROR {
-                if post != State::Error {
-                    self.fail(&format!("fmi2Error left the instance in '{}'", post.name()));
-                }
-                if has_sink
-                    && !new_log.iter().any(|e| {
-                        e.status == ERROR
-                            && e.category == "logStatusError"
-                            && e.message.starts_with(&format!("{}: ", call.name()))
-                    })
-                {
-                    self.fail(&format!(
-                        "fmi2Error from {} without a reason: {new_log:?}",
-                        call.name()
-                    ));
-                }
-            }
         }
+    }
+
+    /// The state a call left: step failed only after a step cut short (with its reason logged) or by
+    /// restoring a state saved there, and never a state the API does not enter.
+    fn check_transition(&self, did: &CallDid, logs_discards: bool) {
+        let (call, status, pre, post) = (did.call, did.status, did.pre, did.post);
         // Into step failed only by a step cut short (fmi2Discard), or by restoring a state saved there.
         let entered_failed = post == State::StepFailed && pre != State::StepFailed;
         if (call == Call::DoStep && (status == Some(DISCARD)) != (post == State::StepFailed))
@@ -523,8 +626,8 @@ impl Fuzzer {
         }
         if status == Some(DISCARD)
             && call == Call::DoStep
-            && has_sink
-            && !new_log.iter().any(|e| e.category == "logStatusDiscard")
+            && did.has_sink
+            && !did.new_log.iter().any(|e| e.category == "logStatusDiscard")
             && logs_discards
         {
             self.fail("fmi2DoStep returned fmi2Discard without a reason");
@@ -539,15 +642,6 @@ impl Fuzzer {
                 | State::Error
         ) {
             self.fail(&format!("the instance entered '{}'", post.name()));
-        }
-        if post == State::StepComplete || post == State::Terminated {
-            let t = slot.inst().time();
-            if t.is_finite() && t > self.stats.max_time {
-                self.stats.max_time = t;
-            }
-        }
-        if slot.log_len() > 4096 {
-            slot.trim_log();
         }
     }
 
@@ -602,55 +696,9 @@ impl Fuzzer {
     ) -> (Option<u32>, String) {
         unsafe {
             match call {
-                Call::FreeInstance => {
-                    fmi2FreeInstance(c);
-                    // The instance's FMU states went with it.
-                    self.states.retain(|s| s.owner != c);
-                    self.slots[i] = None;
-                    (None, "fmi2FreeInstance".into())
-                }
-                Call::SetDebugLogging => {
-                    let pool: [*const c_char; 7] = [
-                        c"logAll".as_ptr(),
-                        c"logCalls".as_ptr(),
-                        c"logStatusError".as_ptr(),
-                        c"logStatusWarning".as_ptr(),
-                        c"bogus".as_ptr(),
-                        null(),
-                        c"\xff".as_ptr(),
-                    ];
-                    let n = self.below(4) as usize;
-                    let cats: Vec<*const c_char> = (0..n).map(|_| self.pick(&pool)).collect();
-                    let on = self.below(3) as i32;
-                    let (nc, p) = match self.below(10) {
-                        0 => (3usize, null()),
-                        1 => (usize::MAX, null()),
-                        _ => (cats.len(), cats.as_ptr()),
-                    };
-                    let s = fmi2SetDebugLogging(c, on, nc, p);
-                    (Some(s), format!("fmi2SetDebugLogging(on {on}, n {nc})"))
-                }
-                Call::SetupExperiment => {
-                    let happy = self.valid || self.chance(0.3);
-                    let (td, tol, start, sd, stop) = if happy {
-                        (FMI2_FALSE, 0.0, 0.0, FMI2_FALSE, 0.0)
-                    } else {
-                        let start = self.pick(&[0.0, 1.5, -10.0, 0.0]);
-                        let start = if self.chance(0.2) { self.real() } else { start };
-                        let stop = if self.chance(0.5) {
-                            start + self.below(50) as f64
-                        } else {
-                            self.real()
-                        };
-                        let tol = self.real();
-                        (self.below(2) as i32, tol, start, self.below(2) as i32, stop)
-                    };
-                    let s = fmi2SetupExperiment(c, td, tol, start, sd, stop);
-                    (
-                        Some(s),
-                        format!("fmi2SetupExperiment({td}, {tol:e}, {start:e}, {sd}, {stop:e})"),
-                    )
-                }
+                Call::FreeInstance => self.free_instance(i, c),
+                Call::SetDebugLogging => self.set_debug_logging(c),
+                Call::SetupExperiment => self.setup_experiment(c),
                 Call::EnterInitializationMode => (
                     Some(fmi2EnterInitializationMode(c)),
                     "fmi2EnterInitializationMode".into(),
@@ -668,198 +716,298 @@ impl Fuzzer {
                 Call::SetReal | Call::SetInteger | Call::SetBoolean | Call::SetString => {
                     self.set(c, kind, state, call)
                 }
-                Call::DoStep => {
-                    let inst = &*(c as *const Instance);
-                    let ts = inst.slave.sample_period();
-                    let now = inst.time();
-                    let t = if self.valid || self.chance(0.85) {
-                        now
-                    } else {
-                        let r = self.real();
-                        self.pick(&[now + ts, now - ts, f64::NAN, 0.0, now + 0.5 * ts, r])
-                    };
-                    // Step sizes relative to Ts (or refused ones): a random h with a tiny Ts would be
-                    // billions of samples, which the plant cuts after 1e8 (seconds of work).
-                    let h = match self.below(24) {
-                        n if self.valid && kind == Kind::Estimator => ts / (1 + n % 4) as f64,
-                        n if self.valid => ts * [1.0, 2.0, 3.0, 0.5, 0.25][n as usize % 5],
-                        0 => 0.0,
-                        1 => -ts,
-                        2 => f64::NAN,
-                        3 => f64::INFINITY,
-                        4 => f64::NEG_INFINITY,
-                        5 => 0.5 * ts,
-                        6 => ts * 1e13,
-                        7 => 5e-324,
-                        8 => ts * (1.0 + 1e-3),
-                        9 => ts * (1.0 + 1e-9),
-                        10 => 2.0 * ts,
-                        11 => 3.0 * ts,
-                        12 => ts / 3.0,
-                        13 => f64::from(ts as f32),
-                        _ => ts,
-                    };
-                    let samples = inst.layer.samples;
-                    let s = fmi2DoStep(c, t, h, self.below(2) as i32);
-                    let inst = &*(c as *const Instance);
-                    let advanced = inst.layer.samples - samples;
-                    if s == OK {
-                        self.stats.steps_ok += 1;
-                        // The clock follows the master's arithmetic; the samples are the instants reached.
-                        if inst.time() != t + h {
-                            self.fail(&format!(
-                                "fmi2DoStep({t:e}, {h:e}) left the clock at {:e}",
-                                inst.time()
-                            ));
-                        }
-                        let max = (h / ts).ceil() as u64 + 1;
-                        if advanced > max || (kind == Kind::Estimator && advanced > 1) {
-                            self.fail(&format!(
-                                "fmi2DoStep(h = {h:e}, Ts = {ts:e}) advanced {advanced} samples"
-                            ));
-                        }
-                    }
-                    if s == DISCARD {
-                        // Cut at the model's limit: the clock stands at the last instant sampled.
-                        let limit = inst.slave.max_samples_per_step();
-                        let at = inst.layer.start_time + inst.layer.samples as f64 * ts;
-                        if advanced != limit
-                            || inst.time() != at
-                            || (h / ts) < limit as f64 * (1.0 - 1e-6)
-                        {
-                            self.fail(&format!(
-                                "fmi2DoStep(h = {h:e}, Ts = {ts:e}) discarded after {advanced} samples at {:e}",
-                                inst.time()
-                            ));
-                        }
-                    }
-                    (
-                        Some(s),
-                        format!("fmi2DoStep(t {t:e} (now {now:e}), h {h:e}, Ts {ts:e})"),
-                    )
-                }
-                Call::GetStatus => {
-                    let mut v: Fmi2StatusC = 77;
-                    let kind_ = self.pick(&[0u32, 1, 2, 3, 4, u32::MAX]);
-                    let p: *mut Fmi2StatusC = if self.chance(0.1) { null_mut() } else { &mut v };
-                    let s = fmi2GetStatus(c, kind_, p);
-                    (
-                        Some(s),
-                        format!("fmi2GetStatus({kind_}, null {})", p.is_null()),
-                    )
-                }
-                Call::GetRealStatus => {
-                    let mut v = f64::NAN;
-                    let kind_ = self.pick(&[2u32, 2, 0, 1, 3, 9]);
-                    let p: *mut f64 = if self.chance(0.1) { null_mut() } else { &mut v };
-                    let s = fmi2GetRealStatus(c, kind_, p);
-                    (Some(s), format!("fmi2GetRealStatus({kind_}) = {v:e}"))
-                }
-                Call::GetIntegerStatus => {
-                    let mut v = 0;
-                    let p: *mut i32 = if self.chance(0.2) { null_mut() } else { &mut v };
-                    let kind_ = self.pick(&[0u32, 1, 2, 3, 77]);
-                    (
-                        Some(fmi2GetIntegerStatus(c, kind_, p)),
-                        format!("fmi2GetIntegerStatus({kind_})"),
-                    )
-                }
-                Call::GetBooleanStatus => {
-                    let mut v = 5;
-                    let p: *mut i32 = if self.chance(0.1) { null_mut() } else { &mut v };
-                    let kind_ = self.pick(&[3u32, 3, 0, 1, 2, 8]);
-                    let s = fmi2GetBooleanStatus(c, kind_, p);
-                    if s == OK && v != FMI2_FALSE && v != FMI2_TRUE {
-                        self.fail(&format!("fmi2GetBooleanStatus gave {v}"));
-                    }
-                    (Some(s), format!("fmi2GetBooleanStatus({kind_})"))
-                }
-                Call::GetStringStatus => {
-                    let mut v: Fmi2String = null();
-                    let p: *mut Fmi2String = if self.chance(0.2) { null_mut() } else { &mut v };
-                    let kind_ = self.pick(&[1u32, 0, 2, 3]);
-                    (
-                        Some(fmi2GetStringStatus(c, kind_, p)),
-                        format!("fmi2GetStringStatus({kind_})"),
-                    )
-                }
-                Call::GetDirectionalDerivative => {
-                    let vu = self.vrs(kind, VarType::Real);
-                    let vk = self.vrs(kind, VarType::Real);
-                    let dk = vec![1.0; vk.len()];
-                    let mut du = vec![0.0; vu.len()];
-                    let s = fmi2GetDirectionalDerivative(
-                        c,
-                        vu.as_ptr(),
-                        vu.len(),
-                        vk.as_ptr(),
-                        vk.len(),
-                        dk.as_ptr(),
-                        du.as_mut_ptr(),
-                    );
-                    if s != ERROR {
-                        self.fail("fmi2GetDirectionalDerivative is not provided but did not fail");
-                    }
-                    (Some(s), "fmi2GetDirectionalDerivative".into())
-                }
-                Call::SetRealInputDerivatives => {
-                    let v = self.vrs(kind, VarType::Real);
-                    let order = vec![1; v.len()];
-                    let val = vec![self.real(); v.len()];
-                    let s = fmi2SetRealInputDerivatives(
-                        c,
-                        v.as_ptr(),
-                        v.len(),
-                        order.as_ptr(),
-                        val.as_ptr(),
-                    );
-                    if s != ERROR {
-                        self.fail("fmi2SetRealInputDerivatives is not supported but did not fail");
-                    }
-                    (Some(s), "fmi2SetRealInputDerivatives".into())
-                }
-                Call::GetRealOutputDerivatives => {
-                    let v = self.vrs(kind, VarType::Real);
-                    let order = vec![1; v.len()];
-                    let mut val = vec![0.0; v.len()];
-                    let s = fmi2GetRealOutputDerivatives(
-                        c,
-                        v.as_ptr(),
-                        v.len(),
-                        order.as_ptr(),
-                        val.as_mut_ptr(),
-                    );
-                    if s != ERROR {
-                        self.fail("fmi2GetRealOutputDerivatives is not supported but did not fail");
-                    }
-                    (Some(s), "fmi2GetRealOutputDerivatives".into())
-                }
+                Call::DoStep => self.do_step(c, kind),
+                Call::GetStatus => self.get_status(c),
+                Call::GetRealStatus => self.get_real_status(c),
+                Call::GetIntegerStatus => self.get_integer_status(c),
+                Call::GetBooleanStatus => self.get_boolean_status(c),
+                Call::GetStringStatus => self.get_string_status(c),
+                Call::GetDirectionalDerivative => self.get_directional_derivative(c, kind),
+                Call::SetRealInputDerivatives => self.set_real_input_derivatives(c, kind),
+                Call::GetRealOutputDerivatives => self.get_real_output_derivatives(c, kind),
                 Call::GetFmuState => self.get_state(c, kind),
                 Call::SetFmuState => self.set_state(c, kind),
                 Call::FreeFmuState => self.free_state(c),
-                Call::SerializedFmuStateSize => {
-                    let mut size = 0usize;
-                    let st = self.some_state();
-                    let sp: *mut usize = if self.chance(0.1) {
-                        null_mut()
-                    } else {
-                        &mut size
-                    };
-                    let s = fmi2SerializedFMUstateSize(c, st, sp);
-                    self.check_owner(s, st, c, "fmi2SerializedFMUstateSize");
-                    if s == OK && size != (*(st as *const SavedState)).bytes.len() {
-                        self.fail("fmi2SerializedFMUstateSize is wrong");
-                    }
-                    (
-                        Some(s),
-                        format!("fmi2SerializedFMUstateSize(null state {})", st.is_null()),
-                    )
-                }
+                Call::SerializedFmuStateSize => self.serialized_size(c),
                 Call::SerializeFmuState => self.serialize(c),
                 Call::DeSerializeFmuState => self.deserialize(c, kind, state),
                 Call::GetTypesPlatform | Call::GetVersion | Call::Instantiate => unreachable!(),
             }
         }
+    }
+
+    /// fmi2FreeInstance on slot `i`; the states the instance issued go with it.
+    unsafe fn free_instance(&mut self, i: usize, c: Fmi2Component) -> (Option<u32>, String) {
+        unsafe { fmi2FreeInstance(c) };
+        // The instance's FMU states went with it.
+        self.states.retain(|s| s.owner != c);
+        self.slots[i] = None;
+        (None, "fmi2FreeInstance".into())
+    }
+
+    /// fmi2SetDebugLogging with declared, undeclared, NULL and non-UTF-8 categories, or a NULL array.
+    unsafe fn set_debug_logging(&mut self, c: Fmi2Component) -> (Option<u32>, String) {
+        let pool: [*const c_char; 7] = [
+            c"logAll".as_ptr(),
+            c"logCalls".as_ptr(),
+            c"logStatusError".as_ptr(),
+            c"logStatusWarning".as_ptr(),
+            c"bogus".as_ptr(),
+            null(),
+            c"\xff".as_ptr(),
+        ];
+        let n = self.below(4) as usize;
+        let cats: Vec<*const c_char> = (0..n).map(|_| self.pick(&pool)).collect();
+        let on = self.below(3) as i32;
+        let (nc, p) = match self.below(10) {
+            0 => (3usize, null()),
+            1 => (usize::MAX, null()),
+            _ => (cats.len(), cats.as_ptr()),
+        };
+        let s = unsafe { fmi2SetDebugLogging(c, on, nc, p) };
+        (Some(s), format!("fmi2SetDebugLogging(on {on}, n {nc})"))
+    }
+
+    /// fmi2SetupExperiment: the happy defaults, or random (often non-finite) times and tolerance.
+    unsafe fn setup_experiment(&mut self, c: Fmi2Component) -> (Option<u32>, String) {
+        let happy = self.valid || self.chance(0.3);
+        let (td, tol, start, sd, stop) = if happy {
+            (FMI2_FALSE, 0.0, 0.0, FMI2_FALSE, 0.0)
+        } else {
+            let start = self.pick(&[0.0, 1.5, -10.0, 0.0]);
+            let start = if self.chance(0.2) { self.real() } else { start };
+            let stop = if self.chance(0.5) {
+                start + self.below(50) as f64
+            } else {
+                self.real()
+            };
+            let tol = self.real();
+            (self.below(2) as i32, tol, start, self.below(2) as i32, stop)
+        };
+        let s = unsafe { fmi2SetupExperiment(c, td, tol, start, sd, stop) };
+        (
+            Some(s),
+            format!("fmi2SetupExperiment({td}, {tol:e}, {start:e}, {sd}, {stop:e})"),
+        )
+    }
+
+    /// fmi2DoStep, mostly at the current time with a step size relative to Ts, else at a wrong time or
+    /// with a step size the layer must refuse; then the clock and the samples reached are checked.
+    unsafe fn do_step(&mut self, c: Fmi2Component, kind: Kind) -> (Option<u32>, String) {
+        let inst = unsafe { &*(c as *const Instance) };
+        let ts = inst.slave.sample_period();
+        let now = inst.time();
+        let t = if self.valid || self.chance(0.85) {
+            now
+        } else {
+            let r = self.real();
+            self.pick(&[now + ts, now - ts, f64::NAN, 0.0, now + 0.5 * ts, r])
+        };
+        let h = self.step_size(kind, ts);
+        let samples = inst.layer.samples;
+        let s = unsafe { fmi2DoStep(c, t, h, self.below(2) as i32) };
+        let inst = unsafe { &*(c as *const Instance) };
+        let advanced = inst.layer.samples - samples;
+        if s == OK {
+            self.stats.steps_ok += 1;
+            self.check_step_done(inst, kind, t, h, ts, advanced);
+        }
+        if s == DISCARD {
+            self.check_step_cut(inst, h, ts, advanced);
+        }
+        (
+            Some(s),
+            format!("fmi2DoStep(t {t:e} (now {now:e}), h {h:e}, Ts {ts:e})"),
+        )
+    }
+
+    /// A step size relative to the sample period `ts` (or one the layer refuses): a random h with a tiny Ts
+    /// would be billions of samples, which the plant cuts after 1e8 (seconds of work).
+    fn step_size(&mut self, kind: Kind, ts: f64) -> f64 {
+        match self.below(24) {
+            n if self.valid && kind == Kind::Estimator => ts / (1 + n % 4) as f64,
+            n if self.valid => ts * [1.0, 2.0, 3.0, 0.5, 0.25][n as usize % 5],
+            0 => 0.0,
+            1 => -ts,
+            2 => f64::NAN,
+            3 => f64::INFINITY,
+            4 => f64::NEG_INFINITY,
+            5 => 0.5 * ts,
+            6 => ts * 1e13,
+            7 => 5e-324,
+            8 => ts * (1.0 + 1e-3),
+            9 => ts * (1.0 + 1e-9),
+            10 => 2.0 * ts,
+            11 => 3.0 * ts,
+            12 => ts / 3.0,
+            13 => f64::from(ts as f32),
+            _ => ts,
+        }
+    }
+
+    /// After fmi2OK from fmi2DoStep(t, h) with the sample period ts: the clock at t + h, and no more
+    /// samples reached than h spans.
+    fn check_step_done(&self, inst: &Instance, kind: Kind, t: f64, h: f64, ts: f64, advanced: u64) {
+        // The clock follows the master's arithmetic; the samples are the instants reached.
+        if inst.time() != t + h {
+            self.fail(&format!(
+                "fmi2DoStep({t:e}, {h:e}) left the clock at {:e}",
+                inst.time()
+            ));
+        }
+        let max = (h / ts).ceil() as u64 + 1;
+        if advanced > max || (kind == Kind::Estimator && advanced > 1) {
+            self.fail(&format!(
+                "fmi2DoStep(h = {h:e}, Ts = {ts:e}) advanced {advanced} samples"
+            ));
+        }
+    }
+
+    /// After fmi2Discard from fmi2DoStep(_, h) with the sample period ts: cut at the model's limit of
+    /// samples per step, the clock at the last instant sampled.
+    fn check_step_cut(&self, inst: &Instance, h: f64, ts: f64, advanced: u64) {
+        let limit = inst.slave.max_samples_per_step();
+        let at = inst.layer.start_time + inst.layer.samples as f64 * ts;
+        if advanced != limit || inst.time() != at || (h / ts) < limit as f64 * (1.0 - 1e-6) {
+            self.fail(&format!(
+                "fmi2DoStep(h = {h:e}, Ts = {ts:e}) discarded after {advanced} samples at {:e}",
+                inst.time()
+            ));
+        }
+    }
+
+    unsafe fn get_status(&mut self, c: Fmi2Component) -> (Option<u32>, String) {
+        let mut v: Fmi2StatusC = 77;
+        let kind_ = self.pick(&[0u32, 1, 2, 3, 4, u32::MAX]);
+        let p: *mut Fmi2StatusC = if self.chance(0.1) { null_mut() } else { &mut v };
+        let s = unsafe { fmi2GetStatus(c, kind_, p) };
+        (
+            Some(s),
+            format!("fmi2GetStatus({kind_}, null {})", p.is_null()),
+        )
+    }
+
+    unsafe fn get_real_status(&mut self, c: Fmi2Component) -> (Option<u32>, String) {
+        let mut v = f64::NAN;
+        let kind_ = self.pick(&[2u32, 2, 0, 1, 3, 9]);
+        let p: *mut f64 = if self.chance(0.1) { null_mut() } else { &mut v };
+        let s = unsafe { fmi2GetRealStatus(c, kind_, p) };
+        (Some(s), format!("fmi2GetRealStatus({kind_}) = {v:e}"))
+    }
+
+    unsafe fn get_integer_status(&mut self, c: Fmi2Component) -> (Option<u32>, String) {
+        let mut v = 0;
+        let p: *mut i32 = if self.chance(0.2) { null_mut() } else { &mut v };
+        let kind_ = self.pick(&[0u32, 1, 2, 3, 77]);
+        (
+            Some(unsafe { fmi2GetIntegerStatus(c, kind_, p) }),
+            format!("fmi2GetIntegerStatus({kind_})"),
+        )
+    }
+
+    /// fmi2GetBooleanStatus; a value it answers with fmi2OK is fmi2True or fmi2False.
+    unsafe fn get_boolean_status(&mut self, c: Fmi2Component) -> (Option<u32>, String) {
+        let mut v = 5;
+        let p: *mut i32 = if self.chance(0.1) { null_mut() } else { &mut v };
+        let kind_ = self.pick(&[3u32, 3, 0, 1, 2, 8]);
+        let s = unsafe { fmi2GetBooleanStatus(c, kind_, p) };
+        if s == OK && v != FMI2_FALSE && v != FMI2_TRUE {
+            self.fail(&format!("fmi2GetBooleanStatus gave {v}"));
+        }
+        (Some(s), format!("fmi2GetBooleanStatus({kind_})"))
+    }
+
+    unsafe fn get_string_status(&mut self, c: Fmi2Component) -> (Option<u32>, String) {
+        let mut v: Fmi2String = null();
+        let p: *mut Fmi2String = if self.chance(0.2) { null_mut() } else { &mut v };
+        let kind_ = self.pick(&[1u32, 0, 2, 3]);
+        (
+            Some(unsafe { fmi2GetStringStatus(c, kind_, p) }),
+            format!("fmi2GetStringStatus({kind_})"),
+        )
+    }
+
+    /// fmi2GetDirectionalDerivative (not provided): fmi2Error whatever the arguments.
+    unsafe fn get_directional_derivative(
+        &mut self,
+        c: Fmi2Component,
+        kind: Kind,
+    ) -> (Option<u32>, String) {
+        let vu = self.vrs(kind, VarType::Real);
+        let vk = self.vrs(kind, VarType::Real);
+        let dk = vec![1.0; vk.len()];
+        let mut du = vec![0.0; vu.len()];
+        let s = unsafe {
+            fmi2GetDirectionalDerivative(
+                c,
+                vu.as_ptr(),
+                vu.len(),
+                vk.as_ptr(),
+                vk.len(),
+                dk.as_ptr(),
+                du.as_mut_ptr(),
+            )
+        };
+        if s != ERROR {
+            self.fail("fmi2GetDirectionalDerivative is not provided but did not fail");
+        }
+        (Some(s), "fmi2GetDirectionalDerivative".into())
+    }
+
+    /// fmi2SetRealInputDerivatives (not supported): fmi2Error whatever the arguments.
+    unsafe fn set_real_input_derivatives(
+        &mut self,
+        c: Fmi2Component,
+        kind: Kind,
+    ) -> (Option<u32>, String) {
+        let v = self.vrs(kind, VarType::Real);
+        let order = vec![1; v.len()];
+        let val = vec![self.real(); v.len()];
+        let s = unsafe {
+            fmi2SetRealInputDerivatives(c, v.as_ptr(), v.len(), order.as_ptr(), val.as_ptr())
+        };
+        if s != ERROR {
+            self.fail("fmi2SetRealInputDerivatives is not supported but did not fail");
+        }
+        (Some(s), "fmi2SetRealInputDerivatives".into())
+    }
+
+    /// fmi2GetRealOutputDerivatives (not supported): fmi2Error whatever the arguments.
+    unsafe fn get_real_output_derivatives(
+        &mut self,
+        c: Fmi2Component,
+        kind: Kind,
+    ) -> (Option<u32>, String) {
+        let v = self.vrs(kind, VarType::Real);
+        let order = vec![1; v.len()];
+        let mut val = vec![0.0; v.len()];
+        let s = unsafe {
+            fmi2GetRealOutputDerivatives(c, v.as_ptr(), v.len(), order.as_ptr(), val.as_mut_ptr())
+        };
+        if s != ERROR {
+            self.fail("fmi2GetRealOutputDerivatives is not supported but did not fail");
+        }
+        (Some(s), "fmi2GetRealOutputDerivatives".into())
+    }
+
+    /// fmi2SerializedFMUstateSize of a saved state (or NULL, or into NULL); the size is the state's.
+    unsafe fn serialized_size(&mut self, c: Fmi2Component) -> (Option<u32>, String) {
+        let mut size = 0usize;
+        let st = self.some_state();
+        let sp: *mut usize = if self.chance(0.1) {
+            null_mut()
+        } else {
+            &mut size
+        };
+        let s = unsafe { fmi2SerializedFMUstateSize(c, st, sp) };
+        self.check_owner(s, st, c, "fmi2SerializedFMUstateSize");
+        if s == OK && size != unsafe { (*(st as *const SavedState)).bytes.len() } {
+            self.fail("fmi2SerializedFMUstateSize is wrong");
+        }
+        (
+            Some(s),
+            format!("fmi2SerializedFMUstateSize(null state {})", st.is_null()),
+        )
     }
 
     unsafe fn get(&mut self, c: Fmi2Component, kind: Kind, call: Call) -> (Option<u32>, String) {
@@ -1263,82 +1411,7 @@ impl Fuzzer {
         kind: Kind,
         state: State,
     ) -> (Option<u32>, String) {
-        // The bytes: what a blob is, and what must happen to it.
-        #[derive(Debug, PartialEq)]
-        enum What {
-            Intact(Kind),
-            Truncated,
-            Corrupted,
-            /// Still valid JSON: one number replaced by another (the checks beyond the syntax).
-            Perturbed,
-            Random,
-            Empty,
-            NullHuge,
-        }
-        let own: Vec<usize> = (0..self.blobs.len())
-            .filter(|&j| self.blobs[j].kind == kind)
-            .collect();
-        let (bytes, what): (Vec<u8>, What) = match self.below(12) {
-            _ if self.valid && !own.is_empty() => {
-                let j = self.pick(&own);
-                (self.blobs[j].bytes.clone(), What::Intact(kind))
-            }
-            0..=2 if !self.blobs.is_empty() => {
-                let j = self.below(self.blobs.len() as u64) as usize;
-                (
-                    self.blobs[j].bytes.clone(),
-                    What::Intact(self.blobs[j].kind),
-                )
-            }
-            5 | 6 if !self.blobs.is_empty() => {
-                let j = self.below(self.blobs.len() as u64) as usize;
-                let cut = self.below(self.blobs[j].bytes.len() as u64) as usize;
-                (self.blobs[j].bytes[..cut].to_vec(), What::Truncated)
-            }
-            7 | 8 if !self.blobs.is_empty() => {
-                let j = self.below(self.blobs.len() as u64) as usize;
-                let mut b = self.blobs[j].bytes.clone();
-                for _ in 0..=self.below(3) {
-                    let k = self.below(b.len() as u64) as usize;
-                    b[k] = self.rng.next_u32() as u8;
-                }
-                (b, What::Corrupted)
-            }
-            3 | 4 if !self.blobs.is_empty() => {
-                let j = self.below(self.blobs.len() as u64) as usize;
-                let mut text = String::from_utf8_lossy(&self.blobs[j].bytes).into_owned();
-                let digits: Vec<usize> = text
-                    .char_indices()
-                    .filter(|(_, c)| c.is_ascii_digit())
-                    .map(|(i, _)| i)
-                    .collect();
-                if !digits.is_empty() {
-                    let at = self.pick(&digits);
-                    let with = self.pick(&[
-                        "0",
-                        "1",
-                        "2",
-                        "7",
-                        "99",
-                        "999",
-                        "65536",
-                        "4294967296",
-                        "1e300",
-                        "-3",
-                    ]);
-                    text.replace_range(at..at + 1, with);
-                }
-                (text.into_bytes(), What::Perturbed)
-            }
-            9 => {
-                let n = self.below(200) as usize;
-                let mut b = vec![0u8; n];
-                self.rng.fill_bytes(&mut b);
-                (b, What::Random)
-            }
-            10 => (Vec::new(), What::NullHuge),
-            _ => (Vec::new(), What::Empty),
-        };
+        let (bytes, what) = self.draw_bytes(kind);
         let (ptr, size) = match what {
             What::NullHuge => (null(), self.pick(&[1usize, 1 << 40, usize::MAX])),
             What::Empty if self.chance(0.5) => (null(), 0),
@@ -1366,29 +1439,7 @@ impl Fuzzer {
             );
         }
         if s == OK {
-            self.stats.deserialized += 1;
-            match what {
-                What::Intact(k) if k != kind => {
-                    self.fail(&format!("{desc}: accepted a state of {k:?} on {kind:?}"))
-                }
-                What::Truncated | What::Empty | What::NullHuge => {
-                    self.fail(&format!("{desc}: accepted"))
-                }
-                _ => {}
-            }
-            match overwrite {
-                Some(j) => {
-                    if target != self.states[j].ptr {
-                        self.fail("fmi2DeSerializeFMUstate moved an existing state");
-                    }
-                    self.states[j].kind = kind;
-                }
-                None => self.states.push(Saved {
-                    ptr: target,
-                    kind,
-                    owner: c,
-                }),
-            }
+            self.deserialized(c, kind, &what, overwrite, target, &desc);
         } else {
             // (Overwriting a state another instance issued is refused, whatever the bytes.)
             if what == What::Intact(kind)
@@ -1399,18 +1450,7 @@ impl Fuzzer {
                 // A state this FMU serialised deserialises again wherever the call is legal.
                 self.stats.own_state_refused[kind.idx()] += 1;
                 let inst = unsafe { &*(c as *const Instance) };
-                let mut reason = inst.check_state_bytes(&bytes).err().unwrap_or_default();
-                // Where the offending value sits (serde_json writes NaN and infinities as null).
-                let text = String::from_utf8_lossy(&bytes).into_owned();
-                for (at, _) in text
-                    .match_indices("null")
-                    .filter(|(at, _)| !text[..*at].ends_with("\"stop_time\":"))
-                {
-                    reason.push_str(&format!(
-                        " | ...{}",
-                        &text[at.saturating_sub(90)..(at + 4).min(text.len())]
-                    ));
-                }
+                let reason = refusal_reason(inst, &bytes);
                 self.known_bug(&format!(
                     "{desc}: refused a state this FMU serialised: {reason}"
                 ));
@@ -1420,6 +1460,116 @@ impl Fuzzer {
             }
         }
         (Some(s), desc)
+    }
+
+    /// The bytes to deserialise on an instance of `kind`, and what they are.
+    fn draw_bytes(&mut self, kind: Kind) -> (Vec<u8>, What) {
+        let own: Vec<usize> = (0..self.blobs.len())
+            .filter(|&j| self.blobs[j].kind == kind)
+            .collect();
+        match self.below(12) {
+            _ if self.valid && !own.is_empty() => {
+                let j = self.pick(&own);
+                (self.blobs[j].bytes.clone(), What::Intact(kind))
+            }
+            0..=2 if !self.blobs.is_empty() => {
+                let j = self.below(self.blobs.len() as u64) as usize;
+                (
+                    self.blobs[j].bytes.clone(),
+                    What::Intact(self.blobs[j].kind),
+                )
+            }
+            5 | 6 if !self.blobs.is_empty() => {
+                let j = self.below(self.blobs.len() as u64) as usize;
+                let cut = self.below(self.blobs[j].bytes.len() as u64) as usize;
+                (self.blobs[j].bytes[..cut].to_vec(), What::Truncated)
+            }
+            7 | 8 if !self.blobs.is_empty() => (self.corrupted_blob(), What::Corrupted),
+            3 | 4 if !self.blobs.is_empty() => (self.perturbed_blob(), What::Perturbed),
+            9 => {
+                let n = self.below(200) as usize;
+                let mut b = vec![0u8; n];
+                self.rng.fill_bytes(&mut b);
+                (b, What::Random)
+            }
+            10 => (Vec::new(), What::NullHuge),
+            _ => (Vec::new(), What::Empty),
+        }
+    }
+
+    /// A serialised state with one to three random bytes overwritten (`blobs` is not empty).
+    fn corrupted_blob(&mut self) -> Vec<u8> {
+        let j = self.below(self.blobs.len() as u64) as usize;
+        let mut b = self.blobs[j].bytes.clone();
+        for _ in 0..=self.below(3) {
+            let k = self.below(b.len() as u64) as usize;
+            b[k] = self.rng.next_u32() as u8;
+        }
+        b
+    }
+
+    /// A serialised state with one digit replaced by a number: still valid JSON (`blobs` is not empty).
+    fn perturbed_blob(&mut self) -> Vec<u8> {
+        let j = self.below(self.blobs.len() as u64) as usize;
+        let mut text = String::from_utf8_lossy(&self.blobs[j].bytes).into_owned();
+        let digits: Vec<usize> = text
+            .char_indices()
+            .filter(|(_, c)| c.is_ascii_digit())
+            .map(|(i, _)| i)
+            .collect();
+        if !digits.is_empty() {
+            let at = self.pick(&digits);
+            let with = self.pick(&[
+                "0",
+                "1",
+                "2",
+                "7",
+                "99",
+                "999",
+                "65536",
+                "4294967296",
+                "1e300",
+                "-3",
+            ]);
+            text.replace_range(at..at + 1, with);
+        }
+        text.into_bytes()
+    }
+
+    /// After fmi2OK from fmi2DeSerializeFMUstate of `what` on an instance of `kind`: the bytes were to be
+    /// accepted, and the state landed in place (`overwrite`) or is new.
+    fn deserialized(
+        &mut self,
+        c: Fmi2Component,
+        kind: Kind,
+        what: &What,
+        overwrite: Option<usize>,
+        target: Fmi2FmuState,
+        desc: &str,
+    ) {
+        self.stats.deserialized += 1;
+        match *what {
+            What::Intact(k) if k != kind => {
+                self.fail(&format!("{desc}: accepted a state of {k:?} on {kind:?}"))
+            }
+            What::Truncated | What::Empty | What::NullHuge => {
+                self.fail(&format!("{desc}: accepted"))
+            }
+            _ => {}
+        }
+        match overwrite {
+            Some(j) => {
+                if target != self.states[j].ptr {
+                    self.fail("fmi2DeSerializeFMUstate moved an existing state");
+                }
+                self.states[j].kind = kind;
+            }
+            None => self.states.push(Saved {
+                ptr: target,
+                kind,
+                owner: c,
+            }),
+        }
     }
 
     fn teardown(&mut self) {

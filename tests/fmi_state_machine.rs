@@ -46,7 +46,7 @@ use crate::common;
 
 use backlash::fmi::instance::Instance;
 use backlash::fmi::state::State;
-use backlash::fmi::vars::{Causality, VarType, Variability};
+use backlash::fmi::vars::{Causality, VarInfo, VarType, Variability};
 use backlash::fmi2::exports::*;
 use backlash::fmi2::ffi::*;
 use backlash::fmi2::state::Call;
@@ -362,134 +362,198 @@ struct Outcome {
 /// Call `call` on `f` with valid arguments. Functions without a component return `None`.
 fn invoke(kind: Kind, f: &mut Fmu, call: Call, donor: &Donor) -> Outcome {
     let c = f.c;
-    let state = f.state();
-    let early = matches!(state, State::Instantiated | State::InitializationMode);
-    let u = kind.vr("u");
-    let real_out = kind.vrs(VarType::Real, Causality::Output);
-    let int_params = kind.vrs(VarType::Integer, Causality::Parameter);
-    let na = kind.vr("na");
-    let bool_vrs: Vec<u32> = kind
-        .variables()
-        .iter()
-        .filter(|v| v.ty == VarType::Boolean)
-        .map(|v| v.vr)
-        .collect();
-    let none: [u32; 0] = [];
-    let st = |s: u32| Outcome {
-        status: Some(s),
-        freed: false,
+    let status = match call {
+        Call::GetTypesPlatform | Call::GetVersion | Call::Instantiate => {
+            invoke_without_component(kind, call);
+            return Outcome {
+                status: None,
+                freed: false,
+            };
+        }
+        Call::FreeInstance => {
+            unsafe { fmi2FreeInstance(c) };
+            // The memory is gone; forget the pointer (the sink is still ours and holds the log).
+            f.c = null_mut();
+            return Outcome {
+                status: None,
+                freed: true,
+            };
+        }
+        Call::SetDebugLogging
+        | Call::SetupExperiment
+        | Call::EnterInitializationMode
+        | Call::ExitInitializationMode
+        | Call::Terminate
+        | Call::Reset
+        | Call::DoStep
+        | Call::CancelStep => invoke_lifecycle(c, call),
+        Call::GetReal | Call::GetInteger | Call::GetBoolean | Call::GetString => {
+            invoke_get(c, kind, call)
+        }
+        Call::SetReal | Call::SetInteger | Call::SetBoolean | Call::SetString => {
+            invoke_set(f, kind, call)
+        }
+        Call::GetFmuState | Call::SetFmuState | Call::FreeFmuState | Call::DeSerializeFmuState => {
+            invoke_fmu_state(f, call, donor)
+        }
+        Call::SerializedFmuStateSize | Call::SerializeFmuState => {
+            invoke_serialization(f, call, donor)
+        }
+        Call::GetDirectionalDerivative
+        | Call::SetRealInputDerivatives
+        | Call::GetRealOutputDerivatives => invoke_derivatives(c, kind, call),
+        Call::GetStatus
+        | Call::GetRealStatus
+        | Call::GetIntegerStatus
+        | Call::GetBooleanStatus
+        | Call::GetStringStatus => invoke_status(c, call),
     };
+    Outcome {
+        status: Some(status),
+        freed: false,
+    }
+}
+
+/// The functions without a component: the platform and version strings, and another instantiation.
+fn invoke_without_component(kind: Kind, call: Call) {
+    match call {
+        Call::GetTypesPlatform => {
+            assert_eq!(
+                unsafe { CStr::from_ptr(fmi2GetTypesPlatform()) },
+                c"default"
+            );
+        }
+        Call::GetVersion => {
+            assert_eq!(unsafe { CStr::from_ptr(fmi2GetVersion()) }, c"2.0");
+        }
+        Call::Instantiate => {
+            // Instantiation has no component: it is the transition out of start/end. A new instance
+            // while this one is in any state starts in 'instantiated', and this one is unaffected.
+            let other = Fmu::new(kind, "other");
+            assert_eq!(other.state(), State::Instantiated);
+            drop(other);
+        }
+        other => unreachable!("{} takes a component", other.name()),
+    }
+}
+
+/// The calls that move an instance through its life (and fmi2SetDebugLogging), with valid arguments.
+fn invoke_lifecycle(c: Fmi2Component, call: Call) -> u32 {
     unsafe {
         match call {
-            Call::GetTypesPlatform => {
-                assert_eq!(CStr::from_ptr(fmi2GetTypesPlatform()), c"default");
-                Outcome {
-                    status: None,
-                    freed: false,
-                }
-            }
-            Call::GetVersion => {
-                assert_eq!(CStr::from_ptr(fmi2GetVersion()), c"2.0");
-                Outcome {
-                    status: None,
-                    freed: false,
-                }
-            }
-            Call::Instantiate => {
-                // Instantiation has no component: it is the transition out of start/end. A new instance
-                // while this one is in any state starts in 'instantiated', and this one is unaffected.
-                let other = Fmu::new(kind, "other");
-                assert_eq!(other.state(), State::Instantiated);
-                drop(other);
-                Outcome {
-                    status: None,
-                    freed: false,
-                }
-            }
-            Call::FreeInstance => {
-                fmi2FreeInstance(c);
-                // The memory is gone; forget the pointer (the sink is still ours and holds the log).
-                f.c = null_mut();
-                Outcome {
-                    status: None,
-                    freed: true,
-                }
-            }
             Call::SetDebugLogging => {
                 let cats = [c"logStatusError".as_ptr(), c"logStatusWarning".as_ptr()];
-                st(fmi2SetDebugLogging(c, FMI2_TRUE, cats.len(), cats.as_ptr()))
+                fmi2SetDebugLogging(c, FMI2_TRUE, cats.len(), cats.as_ptr())
             }
-            Call::SetupExperiment => st(fmi2SetupExperiment(
-                c, FMI2_TRUE, 1e-6, 0.0, FMI2_TRUE, 100.0,
-            )),
-            Call::EnterInitializationMode => st(fmi2EnterInitializationMode(c)),
-            Call::ExitInitializationMode => st(fmi2ExitInitializationMode(c)),
-            Call::Terminate => st(fmi2Terminate(c)),
-            Call::Reset => st(fmi2Reset(c)),
+            Call::SetupExperiment => fmi2SetupExperiment(c, FMI2_TRUE, 1e-6, 0.0, FMI2_TRUE, 100.0),
+            Call::EnterInitializationMode => fmi2EnterInitializationMode(c),
+            Call::ExitInitializationMode => fmi2ExitInitializationMode(c),
+            Call::Terminate => fmi2Terminate(c),
+            Call::Reset => fmi2Reset(c),
+            Call::DoStep => fmi2DoStep(c, 0.0, 1.0, FMI2_TRUE),
+            Call::CancelStep => fmi2CancelStep(c),
+            other => unreachable!("{} is not a lifecycle call", other.name()),
+        }
+    }
+}
+
+/// A getter with valid arguments: the Real outputs, the Integer parameters, every Boolean, no String;
+/// Real values answered with fmi2OK are finite, Boolean ones fmi2True or fmi2False.
+fn invoke_get(c: Fmi2Component, kind: Kind, call: Call) -> u32 {
+    let none: [u32; 0] = [];
+    unsafe {
+        match call {
             Call::GetReal => {
+                let real_out = kind.vrs(VarType::Real, Causality::Output);
                 let mut v = vec![f64::NAN; real_out.len()];
                 let s = fmi2GetReal(c, real_out.as_ptr(), real_out.len(), v.as_mut_ptr());
                 if s == OK {
                     assert!(v.iter().all(|x| x.is_finite()), "{kind:?}: {v:?}");
                 }
-                st(s)
+                s
             }
             Call::GetInteger => {
+                let int_params = kind.vrs(VarType::Integer, Causality::Parameter);
                 let mut v = vec![-99; int_params.len()];
-                st(fmi2GetInteger(
-                    c,
-                    int_params.as_ptr(),
-                    int_params.len(),
-                    v.as_mut_ptr(),
-                ))
+                fmi2GetInteger(c, int_params.as_ptr(), int_params.len(), v.as_mut_ptr())
             }
             Call::GetBoolean => {
+                let bool_vrs: Vec<u32> = kind
+                    .variables()
+                    .iter()
+                    .filter(|v| v.ty == VarType::Boolean)
+                    .map(|v| v.vr)
+                    .collect();
                 let mut v = vec![-99; bool_vrs.len()];
                 let s = fmi2GetBoolean(c, bool_vrs.as_ptr(), bool_vrs.len(), v.as_mut_ptr());
                 if s == OK {
                     assert!(v.iter().all(|&b| b == FMI2_TRUE || b == FMI2_FALSE));
                 }
-                st(s)
+                s
             }
             Call::GetString => {
                 // No String variables: the valid call is the empty one.
                 let mut v: [Fmi2String; 0] = [];
-                st(fmi2GetString(c, none.as_ptr(), 0, v.as_mut_ptr()))
+                fmi2GetString(c, none.as_ptr(), 0, v.as_mut_ptr())
             }
-            Call::SetReal => st(fmi2SetReal(c, [u].as_ptr(), 1, [0.25].as_ptr())),
+            other => unreachable!("{} is not a getter", other.name()),
+        }
+    }
+}
+
+/// A setter with valid arguments for the state `f` is in: the input u, a fixed parameter before
+/// initialisation where the type has one, else the empty call.
+fn invoke_set(f: &Fmu, kind: Kind, call: Call) -> u32 {
+    let c = f.c;
+    let early = matches!(f.state(), State::Instantiated | State::InitializationMode);
+    let none: [u32; 0] = [];
+    unsafe {
+        match call {
+            Call::SetReal => fmi2SetReal(c, [kind.vr("u")].as_ptr(), 1, [0.25].as_ptr()),
             Call::SetInteger => {
                 // A fixed parameter may be set only before fmi2ExitInitializationMode; later the only valid
                 // call is the empty one (there are no Integer inputs or tunable Integer parameters).
                 if early {
-                    st(fmi2SetInteger(c, [na].as_ptr(), 1, [2].as_ptr()))
+                    fmi2SetInteger(c, [kind.vr("na")].as_ptr(), 1, [2].as_ptr())
                 } else {
-                    st(fmi2SetInteger(c, none.as_ptr(), 0, [0; 0].as_ptr()))
+                    fmi2SetInteger(c, none.as_ptr(), 0, [0; 0].as_ptr())
                 }
             }
             Call::SetBoolean => {
                 if early && kind == Kind::Estimator {
                     let rec = kind.vr("recommended");
-                    st(fmi2SetBoolean(c, [rec].as_ptr(), 1, [FMI2_FALSE].as_ptr()))
+                    fmi2SetBoolean(c, [rec].as_ptr(), 1, [FMI2_FALSE].as_ptr())
                 } else {
-                    st(fmi2SetBoolean(c, none.as_ptr(), 0, [0; 0].as_ptr()))
+                    fmi2SetBoolean(c, none.as_ptr(), 0, [0; 0].as_ptr())
                 }
             }
             Call::SetString => {
                 let v: [Fmi2String; 0] = [];
-                st(fmi2SetString(c, none.as_ptr(), 0, v.as_ptr()))
+                fmi2SetString(c, none.as_ptr(), 0, v.as_ptr())
             }
+            other => unreachable!("{} is not a setter", other.name()),
+        }
+    }
+}
+
+/// Get, set, free or deserialise an FMU state: the states passed in are `f`'s own copies of the donor's,
+/// and every state made is freed again.
+fn invoke_fmu_state(f: &mut Fmu, call: Call, donor: &Donor) -> u32 {
+    let c = f.c;
+    unsafe {
+        match call {
             Call::GetFmuState => {
                 let mut s: Fmi2FmuState = null_mut();
                 let r = fmi2GetFMUstate(c, &mut s);
                 assert_eq!(r == OK, !s.is_null());
                 f.free_own_state(s);
-                st(r)
+                r
             }
             Call::SetFmuState => {
                 let own = f.own_state(&donor.bytes);
                 let r = fmi2SetFMUstate(c, own);
                 f.free_own_state(own);
-                st(r)
+                r
             }
             Call::FreeFmuState => {
                 let mut s = f.own_state(&donor.bytes);
@@ -502,27 +566,7 @@ fn invoke(kind: Kind, f: &mut Fmu, call: Call, donor: &Donor) -> Outcome {
                 } else {
                     f.free_own_state(s);
                 }
-                st(r)
-            }
-            Call::SerializedFmuStateSize => {
-                let own = f.own_state(&donor.bytes);
-                let mut size = 0usize;
-                let r = fmi2SerializedFMUstateSize(c, own, &mut size);
-                if r == OK {
-                    assert_eq!(size, donor.bytes.len());
-                }
-                f.free_own_state(own);
-                st(r)
-            }
-            Call::SerializeFmuState => {
-                let own = f.own_state(&donor.bytes);
-                let mut buf = vec![0u8; donor.bytes.len()];
-                let r = fmi2SerializeFMUstate(c, own, buf.as_mut_ptr() as *mut c_char, buf.len());
-                if r == OK {
-                    assert_eq!(buf, donor.bytes);
-                }
-                f.free_own_state(own);
-                st(r)
+                r
             }
             Call::DeSerializeFmuState => {
                 let mut s: Fmi2FmuState = null_mut();
@@ -534,13 +578,53 @@ fn invoke(kind: Kind, f: &mut Fmu, call: Call, donor: &Donor) -> Outcome {
                 );
                 assert_eq!(r == OK, !s.is_null());
                 f.free_own_state(s);
-                st(r)
+                r
             }
+            other => unreachable!("{} is not a state call", other.name()),
+        }
+    }
+}
+
+/// The size or the bytes of `f`'s own copy of the donor's state: the donor's size and bytes.
+fn invoke_serialization(f: &mut Fmu, call: Call, donor: &Donor) -> u32 {
+    let c = f.c;
+    let own = f.own_state(&donor.bytes);
+    let r = unsafe {
+        match call {
+            Call::SerializedFmuStateSize => {
+                let mut size = 0usize;
+                let r = fmi2SerializedFMUstateSize(c, own, &mut size);
+                if r == OK {
+                    assert_eq!(size, donor.bytes.len());
+                }
+                r
+            }
+            Call::SerializeFmuState => {
+                let mut buf = vec![0u8; donor.bytes.len()];
+                let r = fmi2SerializeFMUstate(c, own, buf.as_mut_ptr() as *mut c_char, buf.len());
+                if r == OK {
+                    assert_eq!(buf, donor.bytes);
+                }
+                r
+            }
+            other => unreachable!("{} is not a serialisation call", other.name()),
+        }
+    };
+    f.free_own_state(own);
+    r
+}
+
+/// The three unsupported derivative functions, with arguments that would be valid.
+fn invoke_derivatives(c: Fmi2Component, kind: Kind, call: Call) -> u32 {
+    let u = kind.vr("u");
+    let real_out = kind.vrs(VarType::Real, Causality::Output);
+    unsafe {
+        match call {
             Call::GetDirectionalDerivative => {
                 let unknown = [real_out[0]];
                 let known = [u];
                 let mut dv = [0.0];
-                st(fmi2GetDirectionalDerivative(
+                fmi2GetDirectionalDerivative(
                     c,
                     unknown.as_ptr(),
                     1,
@@ -548,30 +632,33 @@ fn invoke(kind: Kind, f: &mut Fmu, call: Call, donor: &Donor) -> Outcome {
                     1,
                     [1.0].as_ptr(),
                     dv.as_mut_ptr(),
-                ))
+                )
             }
-            Call::SetRealInputDerivatives => st(fmi2SetRealInputDerivatives(
-                c,
-                [u].as_ptr(),
-                1,
-                [1].as_ptr(),
-                [0.0].as_ptr(),
-            )),
+            Call::SetRealInputDerivatives => {
+                fmi2SetRealInputDerivatives(c, [u].as_ptr(), 1, [1].as_ptr(), [0.0].as_ptr())
+            }
             Call::GetRealOutputDerivatives => {
                 let mut v = [0.0];
-                st(fmi2GetRealOutputDerivatives(
+                fmi2GetRealOutputDerivatives(
                     c,
                     [real_out[0]].as_ptr(),
                     1,
                     [1].as_ptr(),
                     v.as_mut_ptr(),
-                ))
+                )
             }
-            Call::DoStep => st(fmi2DoStep(c, 0.0, 1.0, FMI2_TRUE)),
-            Call::CancelStep => st(fmi2CancelStep(c)),
+            other => unreachable!("{} is not a derivative call", other.name()),
+        }
+    }
+}
+
+/// The status getters, each with a status kind it answers (the last successful time is finite).
+fn invoke_status(c: Fmi2Component, call: Call) -> u32 {
+    unsafe {
+        match call {
             Call::GetStatus => {
                 let mut v = 99;
-                st(fmi2GetStatus(c, FMI2_DO_STEP_STATUS, &mut v))
+                fmi2GetStatus(c, FMI2_DO_STEP_STATUS, &mut v)
             }
             Call::GetRealStatus => {
                 let mut v = f64::NAN;
@@ -579,21 +666,22 @@ fn invoke(kind: Kind, f: &mut Fmu, call: Call, donor: &Donor) -> Outcome {
                 if r == OK {
                     assert!(v.is_finite());
                 }
-                st(r)
+                r
             }
             Call::GetIntegerStatus => {
                 // FMI 2.0 defines no Integer status kind: any kind is "not available".
                 let mut v = 0;
-                st(fmi2GetIntegerStatus(c, FMI2_DO_STEP_STATUS, &mut v))
+                fmi2GetIntegerStatus(c, FMI2_DO_STEP_STATUS, &mut v)
             }
             Call::GetBooleanStatus => {
                 let mut v = 99;
-                st(fmi2GetBooleanStatus(c, FMI2_TERMINATED, &mut v))
+                fmi2GetBooleanStatus(c, FMI2_TERMINATED, &mut v)
             }
             Call::GetStringStatus => {
                 let mut v: Fmi2String = null();
-                st(fmi2GetStringStatus(c, FMI2_PENDING_STATUS, &mut v))
+                fmi2GetStringStatus(c, FMI2_PENDING_STATUS, &mut v)
             }
+            other => unreachable!("{} is not a status getter", other.name()),
         }
     }
 }
@@ -654,107 +742,177 @@ fn run_table(reaches: &[Reach], strict_legal: bool) -> (Vec<String>, String) {
         for call in Call::ALL {
             matrix.push_str(&format!("{:<30}", call.name()));
             for &reach in reaches {
-                let mut f = drive(kind, reach, "sm");
-                let before = f.state();
-                let legal = call.allowed_in(before);
-                let out = invoke(kind, &mut f, call, &donor);
-                let log = f.log();
-                let after = if out.freed { None } else { Some(f.state()) };
-                let illegal_logs: Vec<&Entry> = log
-                    .iter()
-                    .filter(|e| e.message.contains("illegal call"))
-                    .collect();
-                let ctx = format!("{kind:?} {} in {}", call.name(), reach.label());
-                // GetTypesPlatform, GetVersion and Instantiate take no component: nothing to refuse.
-                let on_instance = !matches!(
+                matrix.push_str(check_cell(
+                    kind,
                     call,
-                    Call::GetTypesPlatform | Call::GetVersion | Call::Instantiate
-                );
-                matrix.push_str(match (out.status, legal) {
-                    (Some(ERROR), false) => "     x",
-                    (Some(ERROR), true) => "     E",
-                    (Some(OK), _) => "    ok",
-                    (Some(DISCARD), _) => "     D",
-                    (Some(_), _) => "     ?",
-                    (None, _) => "     -",
-                });
-                if !on_instance {
-                    if after != Some(before) || !log.is_empty() {
-                        failures.push(format!("{ctx}: changed the instance: {after:?}, {log:?}"));
-                    }
-                } else if !legal {
-                    let want = Entry {
-                        instance: f.name.clone(),
-                        status: ERROR,
-                        category: "logStatusError".into(),
-                        message: illegal_message(call, before, &f.name),
-                    };
-                    // fmi2FreeInstance has no status: it frees anyway.
-                    if let Some(s) = out.status {
-                        if s != ERROR {
-                            failures.push(format!("{ctx}: illegal, returned {s}, not fmi2Error"));
-                        }
-                        // fmi2Error leads to the error state; fatal is final.
-                        let next = if before == State::Fatal {
-                            State::Fatal
-                        } else {
-                            State::Error
-                        };
-                        if after != Some(next) {
-                            failures.push(format!(
-                                "{ctx}: after the illegal call the state is {after:?}, not {next:?}"
-                            ));
-                        }
-                    }
-                    if log != vec![want.clone()] {
-                        failures.push(format!(
-                            "{ctx}: illegal call logged {log:?}, expected [{want:?}]"
-                        ));
-                    }
-                } else {
-                    if !illegal_logs.is_empty() {
-                        failures.push(format!(
-                            "{ctx}: legal call refused as illegal: {illegal_logs:?}"
-                        ));
-                    }
-                    if strict_legal && let Some(s) = out.status {
-                        let want = expected_legal_status(call);
-                        if s != want {
-                            failures.push(format!(
-                                "{ctx}: legal call returned {s}, expected {want}; log {log:?}"
-                            ));
-                        }
-                        if s == want && after != Some(expected_next(call, before)) {
-                            failures.push(format!(
-                                "{ctx}: state after the call is {after:?}, expected {:?}",
-                                expected_next(call, before)
-                            ));
-                        }
-                        if s == ERROR {
-                            // The reason is logged, and names the function.
-                            if !log.iter().any(|e| {
-                                e.status == ERROR
-                                    && e.category == "logStatusError"
-                                    && e.message.starts_with(&format!("{}: not ", call.name()))
-                            }) {
-                                failures.push(format!(
-                                    "{ctx}: unsupported call without its reason: {log:?}"
-                                ));
-                            }
-                        } else if log.iter().any(|e| e.status >= ERROR) {
-                            failures
-                                .push(format!("{ctx}: a successful call logged an error: {log:?}"));
-                        }
-                    }
-                    if strict_legal && out.freed && !log.is_empty() {
-                        failures.push(format!("{ctx}: fmi2FreeInstance logged {log:?}"));
-                    }
-                }
+                    reach,
+                    &donor,
+                    strict_legal,
+                    &mut failures,
+                ));
             }
             matrix.push('\n');
         }
     }
     (failures, matrix)
+}
+
+/// What one call on a fresh instance did, for the table's checks.
+struct Observed {
+    /// "<kind> <function> in <state>", for the failure messages.
+    ctx: String,
+    call: Call,
+    before: State,
+    /// None: the call freed the instance.
+    after: Option<State>,
+    out: Outcome,
+    log: Vec<Entry>,
+}
+
+/// Call `call` on a fresh instance of `kind` driven to `reach`, push what breaks the table to `failures`;
+/// returns the matrix cell: x refused as illegal, E legal but fmi2Error, D fmi2Discard, - no status.
+fn check_cell(
+    kind: Kind,
+    call: Call,
+    reach: Reach,
+    donor: &Donor,
+    strict_legal: bool,
+    failures: &mut Vec<String>,
+) -> &'static str {
+    let mut f = drive(kind, reach, "sm");
+    let before = f.state();
+    let legal = call.allowed_in(before);
+    let out = invoke(kind, &mut f, call, donor);
+    let log = f.log();
+    let after = if out.freed { None } else { Some(f.state()) };
+    let ctx = format!("{kind:?} {} in {}", call.name(), reach.label());
+    // GetTypesPlatform, GetVersion and Instantiate take no component: nothing to refuse.
+    let on_instance = !matches!(
+        call,
+        Call::GetTypesPlatform | Call::GetVersion | Call::Instantiate
+    );
+    let cell = match (out.status, legal) {
+        (Some(ERROR), false) => "     x",
+        (Some(ERROR), true) => "     E",
+        (Some(OK), _) => "    ok",
+        (Some(DISCARD), _) => "     D",
+        (Some(_), _) => "     ?",
+        (None, _) => "     -",
+    };
+    let seen = Observed {
+        ctx,
+        call,
+        before,
+        after,
+        out,
+        log,
+    };
+    if !on_instance {
+        seen.check_untouched(failures);
+    } else if !legal {
+        seen.check_refused(&f.name, failures);
+    } else {
+        seen.check_legal(strict_legal, failures);
+    }
+    cell
+}
+
+impl Observed {
+    /// A function without a component left the instance as it was and logged nothing.
+    fn check_untouched(&self, failures: &mut Vec<String>) {
+        let (ctx, after, before, log) = (&self.ctx, self.after, self.before, &self.log);
+        if after != Some(before) || !log.is_empty() {
+            failures.push(format!("{ctx}: changed the instance: {after:?}, {log:?}"));
+        }
+    }
+
+    /// An illegal call on `instance`: fmi2Error, the error state (fatal stays fatal), and exactly the
+    /// "illegal call" line logged.
+    fn check_refused(&self, instance: &str, failures: &mut Vec<String>) {
+        let (ctx, after, before, log) = (&self.ctx, self.after, self.before, &self.log);
+        let want = Entry {
+            instance: instance.to_string(),
+            status: ERROR,
+            category: "logStatusError".into(),
+            message: illegal_message(self.call, before, instance),
+        };
+        // fmi2FreeInstance has no status: it frees anyway.
+        if let Some(s) = self.out.status {
+            if s != ERROR {
+                failures.push(format!("{ctx}: illegal, returned {s}, not fmi2Error"));
+            }
+            // fmi2Error leads to the error state; fatal is final.
+            let next = if before == State::Fatal {
+                State::Fatal
+            } else {
+                State::Error
+            };
+            if after != Some(next) {
+                failures.push(format!(
+                    "{ctx}: after the illegal call the state is {after:?}, not {next:?}"
+                ));
+            }
+        }
+        if *log != vec![want.clone()] {
+            failures.push(format!(
+                "{ctx}: illegal call logged {log:?}, expected [{want:?}]"
+            ));
+        }
+    }
+
+    /// A legal call is not refused as illegal; with `strict_legal`, it also returns its expected status,
+    /// moves the instance as the standard says and logs an error only with the reason for it.
+    fn check_legal(&self, strict_legal: bool, failures: &mut Vec<String>) {
+        let (ctx, log) = (&self.ctx, &self.log);
+        let illegal_logs: Vec<&Entry> = log
+            .iter()
+            .filter(|e| e.message.contains("illegal call"))
+            .collect();
+        if !illegal_logs.is_empty() {
+            failures.push(format!(
+                "{ctx}: legal call refused as illegal: {illegal_logs:?}"
+            ));
+        }
+        if strict_legal && let Some(s) = self.out.status {
+            self.check_legal_status(s, failures);
+        }
+        if strict_legal && self.out.freed && !log.is_empty() {
+            failures.push(format!("{ctx}: fmi2FreeInstance logged {log:?}"));
+        }
+    }
+
+    /// The status `s` of a legal call is the expected one, and so is the state after it; an fmi2Error logs
+    /// its reason under the function's name, a success no error.
+    fn check_legal_status(&self, s: u32, failures: &mut Vec<String>) {
+        let (ctx, call, before, after, log) =
+            (&self.ctx, self.call, self.before, self.after, &self.log);
+        let want = expected_legal_status(call);
+        if s != want {
+            failures.push(format!(
+                "{ctx}: legal call returned {s}, expected {want}; log {log:?}"
+            ));
+        }
+        if s == want && after != Some(expected_next(call, before)) {
+            failures.push(format!(
+                "{ctx}: state after the call is {after:?}, expected {:?}",
+                expected_next(call, before)
+            ));
+        }
+        if s == ERROR {
+            // The reason is logged, and names the function.
+            if !log.iter().any(|e| {
+                e.status == ERROR
+                    && e.category == "logStatusError"
+                    && e.message.starts_with(&format!("{}: not ", call.name()))
+            }) {
+                failures.push(format!(
+                    "{ctx}: unsupported call without its reason: {log:?}"
+                ));
+            }
+        } else if log.iter().any(|e| e.status >= ERROR) {
+            failures.push(format!("{ctx}: a successful call logged an error: {log:?}"));
+        }
+    }
 }
 
 // ------------------------------------------------------------------------------------------------- tests
@@ -900,141 +1058,223 @@ fn non_finite_inputs_and_parameters_are_refused_with_a_log_line() {
                     (f64::INFINITY, "inf"),
                     (f64::NEG_INFINITY, "-inf"),
                 ] {
-                    let f = drive(kind, reach, "nan");
-                    // Getters are illegal in 'instantiated' (and would end in the error state).
-                    let before = if Call::GetReal.allowed_in(f.state()) {
-                        Some(f.get_real(&[v.vr]))
-                    } else {
-                        None
-                    };
-                    assert_eq!(
-                        f.set_real(&[v.vr], &[bad]),
-                        ERROR,
-                        "{kind:?} {} = {text}",
-                        v.name
-                    );
-                    assert_eq!(
-                        f.log().last().cloned(),
-                        Some(Entry {
-                            instance: "nan".into(),
-                            status: ERROR,
-                            category: "logStatusError".into(),
-                            message: format!(
-                                "fmi2SetReal: '{}' = {text} is not a finite number",
-                                v.name
-                            ),
-                        }),
-                        "{kind:?} {} = {text} in {}",
-                        v.name,
-                        reach.label()
-                    );
-                    assert_eq!(f.state(), State::Error);
-                    // Nothing was applied: the value reads back as before (getters are legal in error).
-                    let (s, after) = f.get_real(&[v.vr]);
-                    ok(s, "fmi2GetReal in error");
-                    if let Some((s0, v0)) = before {
-                        ok(s0, "fmi2GetReal before");
-                        assert_eq!(v0, after);
-                    } else {
-                        match v.start {
-                            backlash::fmi::vars::Start::Real(x) => assert_eq!(after, vec![x]),
-                            _ => assert!(after[0].is_finite()),
-                        }
-                    }
+                    check_non_finite_value_refused(kind, v, reach, bad, text);
                 }
             }
         }
-        // A batch with one bad value applies nothing.
-        let f = drive(kind, Reach::StepComplete, "batch");
-        let u = kind.vr("u");
-        let (_, u0) = f.get_real(&[u]);
-        let ts = kind.vr("Ts");
-        assert_eq!(f.set_real(&[u, u], &[5.0, f64::NAN]), ERROR);
-        assert_eq!(f.get_real(&[u]).1, u0);
-        drop(f);
+        check_batch_with_a_bad_value_applies_nothing(kind);
         // Experiment and step arguments.
-        let bad_setups: [(i32, f64, f64, i32, f64, &str); 5] = [
-            (
-                FMI2_FALSE,
-                0.0,
-                f64::NAN,
-                FMI2_FALSE,
-                0.0,
-                "startTime NaN is not finite",
-            ),
-            (
-                FMI2_FALSE,
-                0.0,
-                f64::INFINITY,
-                FMI2_FALSE,
-                0.0,
-                "startTime inf is not finite",
-            ),
-            (
-                FMI2_TRUE,
-                f64::NAN,
-                0.0,
-                FMI2_FALSE,
-                0.0,
-                "tolerance NaN must be positive and finite",
-            ),
-            (
-                FMI2_FALSE,
-                0.0,
-                0.0,
-                FMI2_TRUE,
-                f64::NAN,
-                "stopTime NaN must be finite",
-            ),
-            (
-                FMI2_FALSE,
-                0.0,
-                0.0,
-                FMI2_TRUE,
-                f64::INFINITY,
-                "stopTime inf must be finite",
-            ),
-        ];
-        for (tol_def, tol, start, stop_def, stop, msg) in bad_setups {
-            let f = drive(kind, Reach::Instantiated, "setup");
-            let s = unsafe { fmi2SetupExperiment(f.c, tol_def, tol, start, stop_def, stop) };
-            assert_eq!(s, ERROR, "{kind:?} {msg}");
-            let last = f.log().last().cloned().unwrap();
-            assert_eq!(last.status, ERROR);
-            assert!(
-                last.message
-                    .starts_with(&format!("fmi2SetupExperiment: {msg}")),
-                "{kind:?}: {last:?}"
-            );
+        check_bad_setups_refused(kind);
+        check_bad_steps_refused(kind);
+        check_out_of_range_parameter_refused(kind);
+    }
+}
+
+/// fmi2SetReal of `v` = `bad` (written `text`) in `reach`: fmi2Error, the reason logged, the error state,
+/// and the value unchanged.
+fn check_non_finite_value_refused(kind: Kind, v: &VarInfo, reach: Reach, bad: f64, text: &str) {
+    let f = drive(kind, reach, "nan");
+    // Getters are illegal in 'instantiated' (and would end in the error state).
+    let before = if Call::GetReal.allowed_in(f.state()) {
+        Some(f.get_real(&[v.vr]))
+    } else {
+        None
+    };
+    assert_eq!(
+        f.set_real(&[v.vr], &[bad]),
+        ERROR,
+        "{kind:?} {} = {text}",
+        v.name
+    );
+    assert_eq!(
+        f.log().last().cloned(),
+        Some(Entry {
+            instance: "nan".into(),
+            status: ERROR,
+            category: "logStatusError".into(),
+            message: format!("fmi2SetReal: '{}' = {text} is not a finite number", v.name),
+        }),
+        "{kind:?} {} = {text} in {}",
+        v.name,
+        reach.label()
+    );
+    assert_eq!(f.state(), State::Error);
+    // Nothing was applied: the value reads back as before (getters are legal in error).
+    let (s, after) = f.get_real(&[v.vr]);
+    ok(s, "fmi2GetReal in error");
+    if let Some((s0, v0)) = before {
+        ok(s0, "fmi2GetReal before");
+        assert_eq!(v0, after);
+    } else {
+        match v.start {
+            backlash::fmi::vars::Start::Real(x) => assert_eq!(after, vec![x]),
+            _ => assert!(after[0].is_finite()),
         }
-        for (t, h) in [
-            (f64::NAN, 1.0),
-            (0.0, f64::NAN),
-            (0.0, f64::INFINITY),
-            (f64::NEG_INFINITY, 1.0),
-            (0.0, -1.0),
-            (0.0, 0.0),
-            (3.0, 1.0),
-            (0.5, 1.0),
-        ] {
-            let f = drive(kind, Reach::StepComplete, "step");
-            assert_eq!(
-                unsafe { fmi2DoStep(f.c, t, h, FMI2_TRUE) },
-                ERROR,
-                "{kind:?} t={t} h={h}"
-            );
-            let last = f.log().last().cloned().unwrap();
-            assert_eq!(last.category, "logStatusError");
-            assert!(last.message.starts_with("fmi2DoStep: "), "{last:?}");
-        }
-        // Out-of-range parameters (the XML's min) are refused by name too.
-        let f = drive(kind, Reach::Instantiated, "range");
-        assert_eq!(f.set_real(&[ts], &[0.0]), ERROR);
-        assert_eq!(
-            f.log().last().unwrap().message,
-            "fmi2SetReal: 'Ts' = 0 is below its minimum 0.000000001"
+    }
+}
+
+/// A batch with one bad value applies nothing.
+fn check_batch_with_a_bad_value_applies_nothing(kind: Kind) {
+    let f = drive(kind, Reach::StepComplete, "batch");
+    let u = kind.vr("u");
+    let (_, u0) = f.get_real(&[u]);
+    assert_eq!(f.set_real(&[u, u], &[5.0, f64::NAN]), ERROR);
+    assert_eq!(f.get_real(&[u]).1, u0);
+}
+
+/// fmi2SetupExperiment arguments that are refused: (toleranceDefined, tolerance, startTime,
+/// stopTimeDefined, stopTime, the start of the reason).
+const BAD_SETUPS: [(i32, f64, f64, i32, f64, &str); 5] = [
+    (
+        FMI2_FALSE,
+        0.0,
+        f64::NAN,
+        FMI2_FALSE,
+        0.0,
+        "startTime NaN is not finite",
+    ),
+    (
+        FMI2_FALSE,
+        0.0,
+        f64::INFINITY,
+        FMI2_FALSE,
+        0.0,
+        "startTime inf is not finite",
+    ),
+    (
+        FMI2_TRUE,
+        f64::NAN,
+        0.0,
+        FMI2_FALSE,
+        0.0,
+        "tolerance NaN must be positive and finite",
+    ),
+    (
+        FMI2_FALSE,
+        0.0,
+        0.0,
+        FMI2_TRUE,
+        f64::NAN,
+        "stopTime NaN must be finite",
+    ),
+    (
+        FMI2_FALSE,
+        0.0,
+        0.0,
+        FMI2_TRUE,
+        f64::INFINITY,
+        "stopTime inf must be finite",
+    ),
+];
+
+/// Each of `BAD_SETUPS`: fmi2Error with its reason.
+fn check_bad_setups_refused(kind: Kind) {
+    for (tol_def, tol, start, stop_def, stop, msg) in BAD_SETUPS {
+        let f = drive(kind, Reach::Instantiated, "setup");
+        let s = unsafe { fmi2SetupExperiment(f.c, tol_def, tol, start, stop_def, stop) };
+        assert_eq!(s, ERROR, "{kind:?} {msg}");
+        let last = f.log().last().cloned().unwrap();
+        assert_eq!(last.status, ERROR);
+        assert!(
+            last.message
+                .starts_with(&format!("fmi2SetupExperiment: {msg}")),
+            "{kind:?}: {last:?}"
         );
     }
+}
+
+/// fmi2DoStep at a non-finite or wrong time, or with a non-finite, negative or zero step: fmi2Error with a
+/// reason.
+fn check_bad_steps_refused(kind: Kind) {
+    for (t, h) in [
+        (f64::NAN, 1.0),
+        (0.0, f64::NAN),
+        (0.0, f64::INFINITY),
+        (f64::NEG_INFINITY, 1.0),
+        (0.0, -1.0),
+        (0.0, 0.0),
+        (3.0, 1.0),
+        (0.5, 1.0),
+    ] {
+        let f = drive(kind, Reach::StepComplete, "step");
+        assert_eq!(
+            unsafe { fmi2DoStep(f.c, t, h, FMI2_TRUE) },
+            ERROR,
+            "{kind:?} t={t} h={h}"
+        );
+        let last = f.log().last().cloned().unwrap();
+        assert_eq!(last.category, "logStatusError");
+        assert!(last.message.starts_with("fmi2DoStep: "), "{last:?}");
+    }
+}
+
+/// Out-of-range parameters (the XML's min) are refused by name too.
+fn check_out_of_range_parameter_refused(kind: Kind) {
+    let ts = kind.vr("Ts");
+    let f = drive(kind, Reach::Instantiated, "range");
+    assert_eq!(f.set_real(&[ts], &[0.0]), ERROR);
+    assert_eq!(
+        f.log().last().unwrap().message,
+        "fmi2SetReal: 'Ts' = 0 is below its minimum 0.000000001"
+    );
+}
+
+/// One refused fmi2Instantiate: (instanceName, fmuType, fmuGUID, callbacks, the start of the reason).
+type Refusal = (
+    *const c_char,
+    Fmi2Type,
+    *const c_char,
+    *const Fmi2CallbackFunctions,
+    Option<&'static str>,
+);
+
+/// The refusals with a logger to tell the reason to: a wrong type, a foreign or NULL GUID, a NULL or empty
+/// name (`guid` is the plant's, `cb` callbacks with a logger).
+fn instantiate_refusals(guid: &CStr, cb: &Fmi2CallbackFunctions) -> [Refusal; 6] {
+    [
+        (
+            c"p".as_ptr(),
+            FMI2_MODEL_EXCHANGE,
+            guid.as_ptr(),
+            cb,
+            Some("fmi2Instantiate: fmuType 0 is not supported"),
+        ),
+        (
+            c"p".as_ptr(),
+            7,
+            guid.as_ptr(),
+            cb,
+            Some("fmi2Instantiate: fmuType 7 is not supported"),
+        ),
+        (
+            c"p".as_ptr(),
+            FMI2_CO_SIMULATION,
+            c"{00000000-0000-0000-0000-000000000000}".as_ptr(),
+            cb,
+            Some("fmi2Instantiate: fmuGUID {00000000"),
+        ),
+        (
+            c"p".as_ptr(),
+            FMI2_CO_SIMULATION,
+            null(),
+            cb,
+            Some("fmi2Instantiate: fmuGUID is NULL"),
+        ),
+        (
+            null(),
+            FMI2_CO_SIMULATION,
+            guid.as_ptr(),
+            cb,
+            Some("fmi2Instantiate: instanceName is NULL"),
+        ),
+        (
+            c"".as_ptr(),
+            FMI2_CO_SIMULATION,
+            guid.as_ptr(),
+            cb,
+            Some("fmi2Instantiate: instanceName is empty"),
+        ),
+    ]
 }
 
 #[test]
@@ -1048,57 +1288,7 @@ fn instantiate_refuses_bad_arguments_with_a_reason() {
                 cb: *const Fmi2CallbackFunctions| unsafe {
         fmi2Instantiate(name, ty, guid, null(), cb, FMI2_FALSE, FMI2_FALSE)
     };
-    let cases: [(
-        *const c_char,
-        Fmi2Type,
-        *const c_char,
-        *const Fmi2CallbackFunctions,
-        Option<&str>,
-    ); 6] = [
-        (
-            c"p".as_ptr(),
-            FMI2_MODEL_EXCHANGE,
-            guid.as_ptr(),
-            &cb,
-            Some("fmi2Instantiate: fmuType 0 is not supported"),
-        ),
-        (
-            c"p".as_ptr(),
-            7,
-            guid.as_ptr(),
-            &cb,
-            Some("fmi2Instantiate: fmuType 7 is not supported"),
-        ),
-        (
-            c"p".as_ptr(),
-            FMI2_CO_SIMULATION,
-            c"{00000000-0000-0000-0000-000000000000}".as_ptr(),
-            &cb,
-            Some("fmi2Instantiate: fmuGUID {00000000"),
-        ),
-        (
-            c"p".as_ptr(),
-            FMI2_CO_SIMULATION,
-            null(),
-            &cb,
-            Some("fmi2Instantiate: fmuGUID is NULL"),
-        ),
-        (
-            null(),
-            FMI2_CO_SIMULATION,
-            guid.as_ptr(),
-            &cb,
-            Some("fmi2Instantiate: instanceName is NULL"),
-        ),
-        (
-            c"".as_ptr(),
-            FMI2_CO_SIMULATION,
-            guid.as_ptr(),
-            &cb,
-            Some("fmi2Instantiate: instanceName is empty"),
-        ),
-    ];
-    for (name, ty, g, cbp, msg) in cases {
+    for (name, ty, g, cbp, msg) in instantiate_refusals(guid, &cb) {
         sink.lock().unwrap().clear();
         let c = inst(name, ty, g, cbp);
         assert!(c.is_null());

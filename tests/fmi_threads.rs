@@ -308,102 +308,125 @@ fn leak_cycles() {
     jobs.truncate(2); // one of each FMU
     for cycle in 0..cycles {
         for job in &jobs {
-            unsafe {
-                // A refused instantiation (wrong type) and a NULL-callback one.
-                let cb = callbacks(&sink);
-                let guid = Kind::Plant.guid();
-                assert!(
-                    fmi2Instantiate(
-                        c"x".as_ptr(),
-                        FMI2_MODEL_EXCHANGE,
-                        guid.as_ptr(),
-                        null(),
-                        &cb,
-                        0,
-                        0
-                    )
-                    .is_null()
-                );
-                assert!(
-                    fmi2Instantiate(
-                        c"x".as_ptr(),
-                        FMI2_CO_SIMULATION,
-                        guid.as_ptr(),
-                        null(),
-                        null(),
-                        0,
-                        0
-                    )
-                    .is_null()
-                );
-
-                let f = start(job, &sink);
-                let cats = [c"logAll".as_ptr()];
-                ok(
-                    fmi2SetDebugLogging(f.c, FMI2_TRUE, 1, cats.as_ptr()),
-                    "logging",
-                );
-                let mut out = Vec::new();
-                for k in 0..4 {
-                    step(job, &f, k, &mut out);
-                }
-                // Strings: the buffer kept until the next call.
-                let mut sv: [Fmi2String; 0] = [];
-                ok(fmi2GetString(f.c, null(), 0, sv.as_mut_ptr()), "get string");
-                // FMU states: new, overwritten, serialised, deserialised (new and in place), set, freed.
-                let mut s1: Fmi2FmuState = null_mut();
-                ok(fmi2GetFMUstate(f.c, &mut s1), "get state");
-                step(job, &f, 4, &mut out);
-                ok(fmi2GetFMUstate(f.c, &mut s1), "overwrite state");
-                let mut size = 0usize;
-                ok(fmi2SerializedFMUstateSize(f.c, s1, &mut size), "size");
-                let mut bytes = vec![0u8; size];
-                ok(
-                    fmi2SerializeFMUstate(f.c, s1, bytes.as_mut_ptr() as *mut c_char, size),
-                    "serialise",
-                );
-                let mut s2: Fmi2FmuState = null_mut();
-                ok(
-                    fmi2DeSerializeFMUstate(f.c, bytes.as_ptr() as *const c_char, size, &mut s2),
-                    "deserialise",
-                );
-                ok(
-                    fmi2DeSerializeFMUstate(f.c, bytes.as_ptr() as *const c_char, size, &mut s2),
-                    "deserialise in place",
-                );
-                ok(fmi2SetFMUstate(f.c, s2), "set state");
-                step(job, &f, 5, &mut out);
-                ok(fmi2FreeFMUstate(f.c, &mut s1), "free state 1");
-                ok(fmi2FreeFMUstate(f.c, &mut s2), "free state 2");
-                // Refusals: a truncated state, an unknown value reference (error state), then reset.
-                let mut s3: Fmi2FmuState = null_mut();
-                assert_eq!(
-                    fmi2DeSerializeFMUstate(
-                        f.c,
-                        bytes.as_ptr() as *const c_char,
-                        size / 2,
-                        &mut s3
-                    ),
-                    ERROR
-                );
-                assert!(s3.is_null());
-                ok(fmi2Reset(f.c), "reset");
-                let bad = 99_999u32;
-                let mut x = 0.0;
-                ok(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), "setup");
-                ok(fmi2EnterInitializationMode(f.c), "enter");
-                assert_eq!(fmi2GetReal(f.c, &bad, 1, &mut x), ERROR);
-                ok(fmi2Reset(f.c), "reset");
-                ok(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), "setup");
-                ok(fmi2EnterInitializationMode(f.c), "enter");
-                ok(fmi2ExitInitializationMode(f.c), "exit");
-                step(job, &f, 0, &mut out);
-                ok(fmi2Terminate(f.c), "terminate");
-                drop(f); // fmi2FreeInstance
-            }
+            leak_cycle(job, &sink);
         }
         if cycle % 64 == 0 {
             sink.lock().unwrap().clear();
         }
+    }
+}
+
+/// One cycle of `leak_cycles` on `job`'s FMU: refused instantiations, then an instance through logging,
+/// steps, strings, FMU states, refusals and resets to its end.
+fn leak_cycle(job: &Job, sink: &Sink) {
+    refused_instantiations(sink);
+    let f = start(job, sink);
+    let cats = [c"logAll".as_ptr()];
+    ok(
+        unsafe { fmi2SetDebugLogging(f.c, FMI2_TRUE, 1, cats.as_ptr()) },
+        "logging",
+    );
+    let mut out = Vec::new();
+    for k in 0..4 {
+        step(job, &f, k, &mut out);
+    }
+    // Strings: the buffer kept until the next call.
+    let mut sv: [Fmi2String; 0] = [];
+    ok(
+        unsafe { fmi2GetString(f.c, null(), 0, sv.as_mut_ptr()) },
+        "get string",
+    );
+    let bytes = fmu_state_cycle(job, &f, &mut out);
+    refusals_and_resets(job, &f, &bytes, &mut out);
+    ok(unsafe { fmi2Terminate(f.c) }, "terminate");
+    drop(f); // fmi2FreeInstance
+}
+
+/// A refused instantiation (wrong type) and a NULL-callback one.
+fn refused_instantiations(sink: &Sink) {
+    let cb = callbacks(sink);
+    let guid = Kind::Plant.guid();
+    unsafe {
+        assert!(
+            fmi2Instantiate(
+                c"x".as_ptr(),
+                FMI2_MODEL_EXCHANGE,
+                guid.as_ptr(),
+                null(),
+                &cb,
+                0,
+                0
+            )
+            .is_null()
+        );
+        assert!(
+            fmi2Instantiate(
+                c"x".as_ptr(),
+                FMI2_CO_SIMULATION,
+                guid.as_ptr(),
+                null(),
+                null(),
+                0,
+                0
+            )
+            .is_null()
+        );
+    }
+}
+
+/// FMU states: new, overwritten, serialised, deserialised (new and in place), set, freed; returns the
+/// serialised bytes.
+fn fmu_state_cycle(job: &Job, f: &Fmu, out: &mut Vec<u64>) -> Vec<u8> {
+    unsafe {
+        let mut s1: Fmi2FmuState = null_mut();
+        ok(fmi2GetFMUstate(f.c, &mut s1), "get state");
+        step(job, f, 4, out);
+        ok(fmi2GetFMUstate(f.c, &mut s1), "overwrite state");
+        let mut size = 0usize;
+        ok(fmi2SerializedFMUstateSize(f.c, s1, &mut size), "size");
+        let mut bytes = vec![0u8; size];
+        ok(
+            fmi2SerializeFMUstate(f.c, s1, bytes.as_mut_ptr() as *mut c_char, size),
+            "serialise",
+        );
+        let mut s2: Fmi2FmuState = null_mut();
+        ok(
+            fmi2DeSerializeFMUstate(f.c, bytes.as_ptr() as *const c_char, size, &mut s2),
+            "deserialise",
+        );
+        ok(
+            fmi2DeSerializeFMUstate(f.c, bytes.as_ptr() as *const c_char, size, &mut s2),
+            "deserialise in place",
+        );
+        ok(fmi2SetFMUstate(f.c, s2), "set state");
+        step(job, f, 5, out);
+        ok(fmi2FreeFMUstate(f.c, &mut s1), "free state 1");
+        ok(fmi2FreeFMUstate(f.c, &mut s2), "free state 2");
+        bytes
+    }
+}
+
+/// Refusals: a truncated state of `bytes`, an unknown value reference (error state), then reset; and the
+/// instance initialised again and stepped.
+fn refusals_and_resets(job: &Job, f: &Fmu, bytes: &[u8], out: &mut Vec<u64>) {
+    let size = bytes.len();
+    unsafe {
+        let mut s3: Fmi2FmuState = null_mut();
+        assert_eq!(
+            fmi2DeSerializeFMUstate(f.c, bytes.as_ptr() as *const c_char, size / 2, &mut s3),
+            ERROR
+        );
+        assert!(s3.is_null());
+        ok(fmi2Reset(f.c), "reset");
+        let bad = 99_999u32;
+        let mut x = 0.0;
+        ok(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), "setup");
+        ok(fmi2EnterInitializationMode(f.c), "enter");
+        assert_eq!(fmi2GetReal(f.c, &bad, 1, &mut x), ERROR);
+        ok(fmi2Reset(f.c), "reset");
+        ok(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), "setup");
+        ok(fmi2EnterInitializationMode(f.c), "enter");
+        ok(fmi2ExitInitializationMode(f.c), "exit");
+        step(job, f, 0, out);
     }
 }

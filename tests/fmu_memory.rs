@@ -179,29 +179,95 @@ fn refine_pair_steps_allocate_nothing_and_free_everything() {
     pair_run(true, steps() / 5);
 }
 
+/// The value references a pair step uses.
+struct PairVrs {
+    /// Plant: input u, outputs y, x, w.
+    pu: u32,
+    py: u32,
+    px: u32,
+    pw: u32,
+    /// Estimator: inputs u, y, the six estimates, y_hat, e and six standard errors, `updating`.
+    eu: u32,
+    ey: u32,
+    real_outs: Vec<u32>,
+    updating: u32,
+}
+
+impl PairVrs {
+    fn new() -> PairVrs {
+        let pv = &backlash_plant::VARIABLES;
+        let ev = &mrgia_estimator::VARIABLES;
+        PairVrs {
+            pu: vr(pv, "u"),
+            py: vr(pv, "y"),
+            px: vr(pv, "x"),
+            pw: vr(pv, "w"),
+            eu: vr(ev, "u"),
+            ey: vr(ev, "y"),
+            real_outs: [
+                "a1", "a2", "b0", "m2", "c1", "c2", "y_hat", "e", "a1_se", "a2_se", "b0_se",
+                "m2_se", "c1_se", "c2_se",
+            ]
+            .iter()
+            .map(|name| vr(ev, name))
+            .collect(),
+            updating: vr(ev, "updating"),
+        }
+    }
+}
+
+/// What a pair run counted.
+struct PairRun {
+    /// The counts after the warm-up steps and at the end of the run (before freeing).
+    at_warm_up: Counts,
+    at_end: Counts,
+    /// The steps in which the estimator updated.
+    updates: u64,
+    /// The estimator's Real outputs after the last step (`PairVrs::real_outs`).
+    est_out: [f64; 14],
+}
+
 fn pair_run(refine: bool, n: u64) {
     let warm_up = 1000;
+    let vrs = PairVrs::new();
+    let before = counts();
+    let (plant, est) = start_pair(refine);
+    let run = step_pair(plant, est, &vrs, n, warm_up);
+    // SAFETY: live instances, freed once.
+    unsafe {
+        assert_eq!(fmi2Terminate(plant), OK);
+        assert_eq!(fmi2Terminate(est), OK);
+        fmi2FreeInstance(plant);
+        fmi2FreeInstance(est);
+    }
+    let after = counts();
+    let (at_warm_up, at_end) = (run.at_warm_up, run.at_end);
+    println!(
+        "{n} pair steps: {} allocations ({} bytes net) while instantiating and the first {warm_up} steps, \
+         {} allocations and {} frees in the remaining {} steps; {} bytes net after freeing; {} \
+         estimator updates; estimate {:?}",
+        at_warm_up.allocs - before.allocs,
+        at_warm_up.net - before.net,
+        at_end.allocs - at_warm_up.allocs,
+        at_end.frees - at_warm_up.frees,
+        n - warm_up,
+        after.net - before.net,
+        run.updates,
+        &run.est_out[..6],
+    );
+    check_estimates(&run, refine, n);
+    // Constant memory: nothing allocated (or freed) per step after the warm-up, and all given back at the end.
+    assert_eq!(at_end.allocs, at_warm_up.allocs, "allocations per step");
+    assert_eq!(at_end.frees, at_warm_up.frees, "frees per step");
+    assert_eq!(at_end.net, at_warm_up.net, "heap growth over the run");
+    assert_eq!(after.net, before.net, "bytes not freed by fmi2FreeInstance");
+}
+
+/// The plant (noise on) and the estimator (`refine` as given), instantiated and initialised.
+fn start_pair(refine: bool) -> (Fmi2Component, Fmi2Component) {
     let pv = &backlash_plant::VARIABLES;
     let ev = &mrgia_estimator::VARIABLES;
-    let (pu, py, px, pw, noise_std, noise_seed) = (
-        vr(pv, "u"),
-        vr(pv, "y"),
-        vr(pv, "x"),
-        vr(pv, "w"),
-        vr(pv, "noise_std"),
-        vr(pv, "noise_seed"),
-    );
-    let (eu, ey) = (vr(ev, "u"), vr(ev, "y"));
-    let real_outs: Vec<u32> = [
-        "a1", "a2", "b0", "m2", "c1", "c2", "y_hat", "e", "a1_se", "a2_se", "b0_se", "m2_se",
-        "c1_se", "c2_se",
-    ]
-    .iter()
-    .map(|name| vr(ev, name))
-    .collect();
-    let updating_vr = vr(ev, "updating");
-
-    let before = counts();
+    let (noise_std, noise_seed) = (vr(pv, "noise_std"), vr(pv, "noise_seed"));
     let plant = instantiate("plant", backlash_plant::GUID);
     let est = instantiate("estimator", mrgia_estimator::GUID);
     // SAFETY: live instances; the value arrays match the reference arrays in length.
@@ -214,7 +280,17 @@ fn pair_run(refine: bool, n: u64) {
     }
     initialise(plant);
     initialise(est);
+    (plant, est)
+}
 
+/// `n` pair steps, the allocator's counts taken after `warm_up` of them and at the end.
+fn step_pair(
+    plant: Fmi2Component,
+    est: Fmi2Component,
+    v: &PairVrs,
+    n: u64,
+    warm_up: u64,
+) -> PairRun {
     let mut input = Input(0x9E37_79B9_7F4A_7C15);
     let mut plant_out = [0.0; 3];
     let mut est_out = [0.0; 14];
@@ -231,48 +307,42 @@ fn pair_run(refine: bool, n: u64) {
         unsafe {
             // y(k) before the plant steps over sample k (as tests/python/cosim.py pairs them).
             assert_eq!(
-                fmi2GetReal(plant, [py, px, pw].as_ptr(), 3, plant_out.as_mut_ptr()),
+                fmi2GetReal(
+                    plant,
+                    [v.py, v.px, v.pw].as_ptr(),
+                    3,
+                    plant_out.as_mut_ptr()
+                ),
                 OK
             );
-            assert_eq!(fmi2SetReal(plant, &pu, 1, &u), OK);
+            assert_eq!(fmi2SetReal(plant, &v.pu, 1, &u), OK);
             assert_eq!(
-                fmi2SetReal(est, [eu, ey].as_ptr(), 2, [u, plant_out[0]].as_ptr()),
+                fmi2SetReal(est, [v.eu, v.ey].as_ptr(), 2, [u, plant_out[0]].as_ptr()),
                 OK
             );
             assert_eq!(fmi2DoStep(plant, t, 1.0, FMI2_TRUE), OK);
             assert_eq!(fmi2DoStep(est, t, 1.0, FMI2_TRUE), OK);
             assert_eq!(
-                fmi2GetReal(est, real_outs.as_ptr(), 14, est_out.as_mut_ptr()),
+                fmi2GetReal(est, v.real_outs.as_ptr(), 14, est_out.as_mut_ptr()),
                 OK
             );
-            assert_eq!(fmi2GetBoolean(est, &updating_vr, 1, &mut updating), OK);
+            assert_eq!(fmi2GetBoolean(est, &v.updating, 1, &mut updating), OK);
         }
         updates += u64::from(updating != FMI2_FALSE);
         t += 1.0;
     }
-    let at_end = counts();
-    // SAFETY: live instances, freed once.
-    unsafe {
-        assert_eq!(fmi2Terminate(plant), OK);
-        assert_eq!(fmi2Terminate(est), OK);
-        fmi2FreeInstance(plant);
-        fmi2FreeInstance(est);
+    PairRun {
+        at_warm_up,
+        at_end: counts(),
+        updates,
+        est_out,
     }
-    let after = counts();
+}
 
-    println!(
-        "{n} pair steps: {} allocations ({} bytes net) while instantiating and the first {warm_up} steps, \
-         {} allocations and {} frees in the remaining {} steps; {} bytes net after freeing; {updates} \
-         estimator updates; estimate {:?}",
-        at_warm_up.allocs - before.allocs,
-        at_warm_up.net - before.net,
-        at_end.allocs - at_warm_up.allocs,
-        at_end.frees - at_warm_up.frees,
-        n - warm_up,
-        after.net - before.net,
-        &est_out[..6],
-    );
-    // The estimator really ran its update path (the plant drove it), and converged near the paper's truth.
+/// The estimator really ran its update path (the plant drove it), and converged near the paper's truth;
+/// its standard errors are known (positive) with refine, 0 without.
+fn check_estimates(run: &PairRun, refine: bool, n: u64) {
+    let (updates, est_out) = (run.updates, &run.est_out);
     assert!(updates > n / 2, "only {updates} of {n} steps updated");
     let truth = [0.45, 0.55, 0.8, 1.5, 0.5, 1.0];
     for (got, want) in est_out[..6].iter().zip(truth) {
@@ -286,9 +356,4 @@ fn pair_run(refine: bool, n: u64) {
         "standard errors {:?}",
         &est_out[8..]
     );
-    // Constant memory: nothing allocated (or freed) per step after the warm-up, and all given back at the end.
-    assert_eq!(at_end.allocs, at_warm_up.allocs, "allocations per step");
-    assert_eq!(at_end.frees, at_warm_up.frees, "frees per step");
-    assert_eq!(at_end.net, at_warm_up.net, "heap growth over the run");
-    assert_eq!(after.net, before.net, "bytes not freed by fmi2FreeInstance");
 }
