@@ -6,25 +6,33 @@
 #
 # `bash scripts/setup.sh --main`: only what the main job needs (the pinned FMPy, NumPy and Matplotlib, zig and
 # cargo-zigbuild, maturin), so that a fresh machine starts building sooner; the tests' tools come with a plain
-# `bash scripts/setup.sh`.
+# `bash scripts/setup.sh`. `--system` and `--python`: the two halves of the plain setup, the system packages and
+# the Python environment (scripts/test.sh makes the second beside the lints, which need only the first).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+mode=${1:-all}
+case "$mode" in
+all | --main | --system | --python) ;;
+*)
+    echo "usage: bash scripts/setup.sh [--main | --system | --python]" >&2
+    exit 2
+    ;;
+esac
 # libclang: bindgen in fmi-sys (the `fmi` importer used by the Rust integration tests). valgrind: the leak
 # check of scripts/compliance.sh. time: GNU time, the peak memory of a diagnose run in scripts/peer_compare.py.
 # (No font libraries: the plots' font is inside the binary.)
-main_only=0
-[ "${1:-}" = --main ] && main_only=1
-if ((main_only)); then
-    bash scripts/apt_install.sh python3-venv
-else
-    bash scripts/apt_install.sh libclang-dev valgrind time python3-venv
-fi
+case "$mode" in
+--main) bash scripts/apt_install.sh python3-venv ;;
+--python) ;;
+*) bash scripts/apt_install.sh libclang-dev valgrind time python3-venv ;;
+esac
+[ "$mode" = --system ] && exit 0
 
 [ -x .venv/bin/python ] || python3 -m venv .venv
 pip=(.venv/bin/python -m pip install -q --disable-pip-version-check)
 maturin=maturin==1.16.0
-if ((main_only)); then
+if [ "$mode" = --main ]; then
     # The pins of tests/python/requirements.txt, for the packages the main job imports.
     "${pip[@]}" -c tests/python/requirements.txt fmpy numpy matplotlib "$maturin" -r scripts/requirements-cross.txt
     exit 0

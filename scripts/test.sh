@@ -6,12 +6,24 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 step() { printf '== [%dm%02ds] %s\n' $((SECONDS / 60)) $((SECONDS % 60)) "$*"; }
-step "setup (system packages, the Python environment)"
-bash scripts/setup.sh
+step "setup: system packages"
+bash scripts/setup.sh --system
+# The Python environment (pip) is made beside formatting, lints and docs, which do not use it; the release
+# build waits for it (zig links the FMUs' portable binary).
+mkdir -p target
+setup_log=target/setup-python.log
+step "setup: the Python environment (in the background: $setup_log)"
+bash scripts/setup.sh --python >"$setup_log" 2>&1 &
+setup_pid=$!
+trap 'kill "$setup_pid" 2>/dev/null || true' EXIT
 # The FMUs' binary linked against GLIBC 2.17 (packaging/build.rs), as scripts/dist.sh builds it: the same setting for
 # every cargo command here, so that no step rebuilds what another built (the build script reruns when it
 # changes).
 export BACKLASH_FMU_PORTABLE=require
+# Without the release profile's line tables (Cargo.toml; they serve profiling, and a valgrind report then names
+# functions without their lines): the release build of the crate and the tests takes about 7% less CPU
+# (docs/ARCHITECTURE.md, "Where CI time goes"). Every release build here, the wheel's too, sees the same setting.
+export CARGO_PROFILE_RELEASE_DEBUG=false
 
 step "cargo fmt --check"
 cargo fmt --check
@@ -24,6 +36,14 @@ RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
 # libc, flate2, ...), and cargo compiles the crate's library once per set of features. Built here with the
 # tests' set, the program, the tests and `cargo test` below share one build of the crate; a plain
 # `cargo build --release` would compile it a second time (about a minute), so no step here runs one.
+step "waiting for the Python environment"
+if ! wait "$setup_pid"; then
+    cat "$setup_log" >&2
+    echo "setting up the Python environment failed (log above, $setup_log)" >&2
+    exit 1
+fi
+trap - EXIT
+cat "$setup_log"
 step "cargo build --release --lib --bins --tests --examples (both FMUs, the CLI, the tests)"
 cargo build --release --lib --bins --tests --examples
 step "every platform's FMUs: scripts/dist.sh (target/dist)"
