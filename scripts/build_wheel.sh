@@ -38,9 +38,14 @@ rm -f target/wheels/backlash_fmu-*manylinux*.whl
 for tool in maturin auditwheel patchelf python-zig cargo-zigbuild; do
     command -v "$tool" >/dev/null || { echo "error: $tool is missing: run scripts/setup.sh" >&2; exit 1; }
 done
-# One release build of the extension (and, through the build script of backlash-fmu, of the FMUs it carries).
+# One release build of the extension (and, through the build script of backlash-fmu-packaging, of the FMUs it
+# carries). Not `maturin --zig`: that builds for an explicit --target, in a target directory of its own, and so
+# compiles the crate and every dependency again beside the release build. Here zig links the extension's crate
+# alone (a rustc flag for that crate), and the build reuses the release build's dependencies: after CI's build of
+# the tests it compiles only PyO3, NumPy's bindings and the extension (python/Cargo.toml, `shared-build`).
 TAG=manylinux_2_17
-maturin build --release --zig --compatibility "$TAG" --out target/wheels --quiet
+maturin build --release --compatibility "$TAG" --features shared-build --out target/wheels --quiet \
+    -- -C linker="$PWD/scripts/zig_cc_glibc217.sh"
 wheel=$(ls target/wheels/backlash_fmu-*manylinux*.whl)
 # The FMUs must be inside, and the wheel must keep its manylinux promise.
 python - "$wheel" <<'PY'

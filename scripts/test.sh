@@ -11,11 +11,27 @@ bash scripts/setup.sh --system
 # The Python environment (pip) is made beside formatting, lints and docs, which do not use it; the release
 # build waits for it (zig links the FMUs' portable binary).
 mkdir -p target
-setup_log=target/setup-python.log
-step "setup: the Python environment (in the background: $setup_log)"
-bash scripts/setup.sh --python >"$setup_log" 2>&1 &
-setup_pid=$!
-trap 'kill "$setup_pid" 2>/dev/null || true' EXIT
+# A step in the background: `in_background <log> <command...>` starts it with its output in the log (killed if this
+# script ends first); `await_background <what>` waits for it, prints its log and stops the run if it failed.
+in_background() {
+    background_log=$1
+    shift
+    "$@" >"$background_log" 2>&1 &
+    background_pid=$!
+    trap 'kill "$background_pid" 2>/dev/null || true' EXIT
+}
+await_background() {
+    local status=0
+    wait "$background_pid" || status=$?
+    trap - EXIT
+    cat "$background_log"
+    if [ "$status" -ne 0 ]; then
+        echo "$1 failed (exit $status; its output above, in $background_log)" >&2
+        exit "$status"
+    fi
+}
+step "setup: the Python environment (in the background: target/setup-python.log)"
+in_background target/setup-python.log bash scripts/setup.sh --python
 # The FMUs' binary linked against GLIBC 2.17 (packaging/build.rs), as scripts/dist.sh builds it: the same setting for
 # every cargo command here, so that no step rebuilds what another built (the build script reruns when it
 # changes).
@@ -37,19 +53,29 @@ RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
 # tests' set, the program, the tests and `cargo test` below share one build of the crate; a plain
 # `cargo build --release` would compile it a second time (about a minute), so no step here runs one.
 step "waiting for the Python environment"
-if ! wait "$setup_pid"; then
-    cat "$setup_log" >&2
-    echo "setting up the Python environment failed (log above, $setup_log)" >&2
-    exit 1
-fi
-trap - EXIT
-cat "$setup_log"
+await_background "setting up the Python environment"
+# `reusing_release_build <command...>` runs the command and fails if it compiled a second copy of a crate that
+# target/release/deps held before it (cargo compiles a crate once per set of features): the wheel's build is meant to
+# reuse every dependency of the tests' build (python/Cargo.toml, `shared-build`, says how and which crates).
+rlibs() { find target/release/deps -name 'lib*.rlib' -printf '%f\n' | sort; }
+crate_of() { sed 's/^lib\(.*\)-[0-9a-f]*\.rlib$/\1/' | sort -u; }
+reusing_release_build() {
+    local before again
+    before=$(rlibs)
+    "$@"
+    again=$(comm -12 <(crate_of <<<"$before") <(comm -13 <(echo "$before") <(rlibs) | crate_of))
+    if [ -n "$again" ]; then
+        echo "error: \`$*\` compiled again, with other features, what the tests' build had compiled:" $again >&2
+        echo "       add the features that differ to python/Cargo.toml's shared-build (cargo tree -e features -i <crate>)" >&2
+        exit 1
+    fi
+}
 step "cargo build --release --lib --bins --tests --examples (both FMUs, the CLI, the tests)"
 cargo build --release --lib --bins --tests --examples
 step "every platform's FMUs: scripts/dist.sh (target/dist)"
 bash scripts/dist.sh
-step "the manylinux2014 wheel (the one build of the Python extension), installed into .venv"
-bash scripts/build_wheel.sh
+step "the manylinux2014 wheel (the one build of the Python extension, on the build above), installed into .venv"
+reusing_release_build bash scripts/build_wheel.sh
 .venv/bin/python -m pip install -q --disable-pip-version-check --force-reinstall --no-deps \
     target/wheels/backlash_fmu-*manylinux*.whl
 step "cargo test --release"
@@ -65,22 +91,12 @@ python_tests() {
             target/wheels/backlash_fmu-*manylinux*.whl numpy fmpy pytest &&
         target/wheel-venv/bin/python -m pytest -q -p no:cacheprovider tests/python/test_api.py
 }
-python_log=target/python-tests.log
-step "pytest, then the Python API tests in a fresh virtual environment holding only the wheel (in the background: $python_log)"
-python_tests >"$python_log" 2>&1 &
-python_pid=$!
-trap 'kill "$python_pid" 2>/dev/null || true' EXIT
+step "pytest, then the Python API tests in a fresh virtual environment holding only the wheel (in the background: target/python-tests.log)"
+in_background target/python-tests.log python_tests
 step "every platform: tests/cross on target/dist (Windows under Wine, aarch64 under QEMU)"
 bash scripts/cross_test.sh --no-dist
 step "compliance: valgrind, fmutool, long fuzz, 1 GB file in bounded memory"
 bash scripts/compliance.sh
-step "the Python tests' output ($python_log)"
-python_status=0
-wait "$python_pid" || python_status=$?
-trap - EXIT
-cat "$python_log"
-if [ "$python_status" -ne 0 ]; then
-    echo "the Python tests failed (exit $python_status): $python_log" >&2
-    exit "$python_status"
-fi
+step "the Python tests' output (target/python-tests.log)"
+await_background "the Python tests"
 step "all tests passed"
