@@ -9,7 +9,13 @@
 # extension's package, `maturin develop` finds it done and compiles only PyO3 and the extension.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh --main
+# The build needs only zig and cargo-zigbuild from the Python environment (the FMUs' portable binary): they come
+# first, and the rest (FMPy, NumPy, Matplotlib, maturin: about 20 s of pip) is installed beside the build.
+bash scripts/setup.sh --linker
+mkdir -p target
+source scripts/background.sh
+in_background target/setup-main.log bash scripts/setup.sh --main
 cargo build --release --workspace
+await_background "setting up the Python environment (scripts/setup.sh --main)"
 bash scripts/install_package.sh
 .venv/bin/python scripts/paper_cosim.py "$@"

@@ -8,14 +8,16 @@
 # cargo-zigbuild, maturin), so that a fresh machine starts building sooner; the tests' tools come with a plain
 # `bash scripts/setup.sh`. `--system` and `--python`: the two halves of the plain setup, the system packages and
 # the Python environment (scripts/test.sh makes the second beside the lints, which need only the first).
+# `--linker`: only zig and cargo-zigbuild, which the release build needs for the FMUs' portable binary
+# (scripts/main.sh installs them first, then the rest of `--main` beside the build).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 mode=${1:-all}
 case "$mode" in
-all | --main | --system | --python) ;;
+all | --main | --linker | --system | --python) ;;
 *)
-    echo "usage: bash scripts/setup.sh [--main | --system | --python]" >&2
+    echo "usage: bash scripts/setup.sh [--main | --linker | --system | --python]" >&2
     exit 2
     ;;
 esac
@@ -23,7 +25,7 @@ esac
 # check of scripts/compliance.sh. time: GNU time, the peak memory of a diagnose run in scripts/peer_compare.py.
 # (No font libraries: the plots' font is inside the binary.)
 case "$mode" in
---main) bash scripts/apt_install.sh python3-venv ;;
+--main | --linker) bash scripts/apt_install.sh python3-venv ;;
 --python) ;;
 *) bash scripts/apt_install.sh libclang-dev valgrind time python3-venv ;;
 esac
@@ -32,6 +34,10 @@ esac
 [ -x .venv/bin/python ] || python3 -m venv .venv
 pip=(.venv/bin/python -m pip install -q --disable-pip-version-check)
 maturin=maturin==1.16.0
+if [ "$mode" = --linker ]; then
+    "${pip[@]}" -r scripts/requirements-cross.txt
+    exit 0
+fi
 if [ "$mode" = --main ]; then
     # The pins of tests/python/requirements.txt, for the packages the main job imports.
     "${pip[@]}" -c tests/python/requirements.txt fmpy numpy matplotlib "$maturin" -r scripts/requirements-cross.txt

@@ -11,25 +11,7 @@ bash scripts/setup.sh --system
 # The Python environment (pip) is made beside formatting, lints and docs, which do not use it; the release
 # build waits for it (zig links the FMUs' portable binary).
 mkdir -p target
-# A step in the background: `in_background <log> <command...>` starts it with its output in the log (killed if this
-# script ends first); `await_background <what>` waits for it, prints its log and stops the run if it failed.
-in_background() {
-    background_log=$1
-    shift
-    "$@" >"$background_log" 2>&1 &
-    background_pid=$!
-    trap 'kill "$background_pid" 2>/dev/null || true' EXIT
-}
-await_background() {
-    local status=0
-    wait "$background_pid" || status=$?
-    trap - EXIT
-    cat "$background_log"
-    if [ "$status" -ne 0 ]; then
-        echo "$1 failed (exit $status; its output above, in $background_log)" >&2
-        exit "$status"
-    fi
-}
+source scripts/background.sh
 step "setup: the Python environment (in the background: target/setup-python.log)"
 in_background target/setup-python.log bash scripts/setup.sh --python
 # The FMUs' binary linked against GLIBC 2.17 (packaging/build.rs), as scripts/dist.sh builds it: the same setting for
@@ -54,16 +36,18 @@ RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
 # `cargo build --release` would compile it a second time (about a minute), so no step here runs one.
 step "waiting for the Python environment"
 await_background "setting up the Python environment"
-# `reusing_release_build <command...>` runs the command and fails if it compiled a second copy of a crate that
-# target/release/deps held before it (cargo compiles a crate once per set of features): the wheel's build is meant to
-# reuse every dependency of the tests' build (python/Cargo.toml, `shared-build`, says how and which crates).
+# `reusing_release_build <command...>` runs the command and fails if it compiled a second copy of a crate that the
+# tests' build has (cargo compiles a crate once per set of features, and names each copy by a hash): the wheel's
+# build is meant to compile only what the extension adds, PyO3 and NumPy's bindings, and reuse every other
+# dependency (python/Cargo.toml, `shared-build`, says how and which crates).
 rlibs() { find target/release/deps -name 'lib*.rlib' -printf '%f\n' | sort; }
 crate_of() { sed 's/^lib\(.*\)-[0-9a-f]*\.rlib$/\1/' | sort -u; }
+tests_crates() { cargo tree -p backlash-fmu -e normal,dev --prefix none --format '{lib}' | sed 's/ (\*)$//' | sort -u; }
 reusing_release_build() {
     local before again
     before=$(rlibs)
     "$@"
-    again=$(comm -12 <(crate_of <<<"$before") <(comm -13 <(echo "$before") <(rlibs) | crate_of))
+    again=$(comm -12 <(tests_crates) <(comm -13 <(echo "$before") <(rlibs) | crate_of))
     if [ -n "$again" ]; then
         echo "error: \`$*\` compiled again, with other features, what the tests' build had compiled:" $again >&2
         echo "       add the features that differ to python/Cargo.toml's shared-build (cargo tree -e features -i <crate>)" >&2

@@ -927,6 +927,15 @@ impl Fuzzer {
         )
     }
 
+    /// The result of a call the FMUs refuse whatever the arguments (`why`: "not provided", "not supported"):
+    /// the test fails unless the status is fmi2Error.
+    fn must_refuse(&self, s: u32, name: &str, why: &str) -> (Option<u32>, String) {
+        if s != ERROR {
+            self.fail(&format!("{name} is {why} but did not fail"));
+        }
+        (Some(s), name.into())
+    }
+
     /// fmi2GetDirectionalDerivative (not provided): fmi2Error whatever the arguments.
     unsafe fn get_directional_derivative(
         &mut self,
@@ -948,10 +957,7 @@ impl Fuzzer {
                 du.as_mut_ptr(),
             )
         };
-        if s != ERROR {
-            self.fail("fmi2GetDirectionalDerivative is not provided but did not fail");
-        }
-        (Some(s), "fmi2GetDirectionalDerivative".into())
+        self.must_refuse(s, "fmi2GetDirectionalDerivative", "not provided")
     }
 
     /// fmi2SetRealInputDerivatives (not supported): fmi2Error whatever the arguments.
@@ -966,10 +972,7 @@ impl Fuzzer {
         let s = unsafe {
             fmi2SetRealInputDerivatives(c, v.as_ptr(), v.len(), order.as_ptr(), val.as_ptr())
         };
-        if s != ERROR {
-            self.fail("fmi2SetRealInputDerivatives is not supported but did not fail");
-        }
-        (Some(s), "fmi2SetRealInputDerivatives".into())
+        self.must_refuse(s, "fmi2SetRealInputDerivatives", "not supported")
     }
 
     /// fmi2GetRealOutputDerivatives (not supported): fmi2Error whatever the arguments.
@@ -984,10 +987,7 @@ impl Fuzzer {
         let s = unsafe {
             fmi2GetRealOutputDerivatives(c, v.as_ptr(), v.len(), order.as_ptr(), val.as_mut_ptr())
         };
-        if s != ERROR {
-            self.fail("fmi2GetRealOutputDerivatives is not supported but did not fail");
-        }
-        (Some(s), "fmi2GetRealOutputDerivatives".into())
+        self.must_refuse(s, "fmi2GetRealOutputDerivatives", "not supported")
     }
 
     /// fmi2SerializedFMUstateSize of a saved state (or NULL, or into NULL); the size is the state's.
