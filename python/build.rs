@@ -58,6 +58,7 @@ fn sync(from: &Path, to: &Path) -> Result<(), String> {
         std::fs::copy(&f, &dest)
             .map_err(|e| format!("{} -> {}: {e}", f.display(), dest.display()))?;
     }
-    println!("cargo:rerun-if-changed={}", to.display());
+    // Not `rerun-if-changed` on `to`: this script writes there, so the folder would always look newer than the
+    // last run, and every build would run the script and compile the extension again.
     Ok(())
 }

@@ -12,8 +12,8 @@
 #    and random call sequences (FMI3_LEAK_FUZZ_CALLS per FMU, default 2000; 0 skips the FMI 3.0 run).
 #
 # Passes when memcheck reports no error and "definitely lost: 0 bytes" (or no leak at all) for each.
-# Needs valgrind (Debian: apt-get install valgrind). Builds the test binaries in release (with line tables,
-# as the profile says); set CARGO_TARGET_DIR to use another target directory.
+# Needs valgrind (Debian: apt-get install valgrind). Builds the test binaries in release (no line tables: a
+# report names functions, not lines); set CARGO_TARGET_DIR to use another target directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

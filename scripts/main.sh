@@ -15,6 +15,10 @@ bash scripts/setup.sh --linker
 mkdir -p target
 source scripts/background.sh
 in_background target/setup-main.log bash scripts/setup.sh --main
+# PyO3's build configuration for this abi3-py39 extension (python/pyo3-abi3-py39.txt, the file maturin writes for
+# it), the same for both builds below: maturin keeps a PYO3_CONFIG_FILE it is given, so `maturin develop` finds
+# PyO3 built by `cargo build` instead of compiling it again because the variable changed.
+export PYO3_CONFIG_FILE="$PWD/python/pyo3-abi3-py39.txt" PYO3_BUILD_EXTENSION_MODULE=1
 cargo build --release --workspace
 await_background "setting up the Python environment (scripts/setup.sh --main)"
 bash scripts/install_package.sh

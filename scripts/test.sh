@@ -18,10 +18,6 @@ in_background target/setup-python.log bash scripts/setup.sh --python
 # every cargo command here, so that no step rebuilds what another built (the build script reruns when it
 # changes).
 export BACKLASH_FMU_PORTABLE=require
-# Without the release profile's line tables (Cargo.toml; they serve profiling, and a valgrind report then names
-# functions without their lines): the release build of the crate and the tests takes about 7% less CPU
-# (docs/ARCHITECTURE.md, "Where CI time goes"). Every release build here, the wheel's too, sees the same setting.
-export CARGO_PROFILE_RELEASE_DEBUG=false
 
 step "cargo fmt --check"
 cargo fmt --check
