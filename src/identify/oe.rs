@@ -129,7 +129,9 @@
 //! - Noise-free data: the residual is zero up to rounding, so the standard errors are (near) zero.
 //! - Records shorter than p + 1 samples, mismatched lengths and non-finite samples are refused.
 
+mod lm;
 pub mod online;
+mod sim;
 #[cfg(feature = "cli")]
 mod study;
 #[cfg(test)]
@@ -143,11 +145,13 @@ pub use study::{
 
 use super::mrgia::{self, Estimate, MrgiaConfig};
 use crate::plant::{
-    ArxParams, BacklashParams, MAX_ORDER, ParamError, PlantParams, check_delay, check_order,
-    check_positive, check_structure,
+    ArxParams, BacklashParams, MAX_ORDER, ParamError, PlantParams, check_order, check_positive,
+    check_structure,
 };
-use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use lm::{Lm, levenberg_marquardt, repair_start};
+use nalgebra::{DMatrix, SymmetricEigen};
 use serde::{Deserialize, Serialize};
+use sim::{SimState, Theta, cost_only, info_matrix, normal_equations, propagate, propagate_state};
 
 /// Largest parameter count: 4 a's, 5 b's, m2, c1, c2.
 pub const MAX_P: usize = MAX_ORDER + (MAX_ORDER + 1) + 3;
@@ -157,14 +161,8 @@ pub const M2_MIN: f64 = 1e-3;
 /// declared not to excite the parameters: the standard errors would be inflated by more than 1e5 over
 /// those of uncorrelated parameters with the same information.
 pub const RCOND_MIN: f64 = 1e-10;
-/// lambda above which the optimiser gives up decreasing the cost.
-const LAMBDA_MAX: f64 = 1e16;
 /// The iteration stops when the Gauss-Newton step is shorter than this many standard errors (module docs).
 pub const STEP_SE: f64 = 0.1;
-/// Relative cost tolerance: a step whose actual and predicted decreases are both below `FTOL V` ends the
-/// iteration (as MINPACK's ftol). At V = N s^2 a parameter change of e standard errors changes V by about
-/// e^2 s^2, so 1e-12 stops at ~1e-4 standard errors for N up to 1e5.
-const FTOL: f64 = 1e-12;
 
 /// Why an output-error fit or a CRB could not be computed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -443,221 +441,6 @@ pub struct OeFit {
     pub samples: usize,
 }
 
-/// Internal parameter vector with its structure.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-struct Theta {
-    v: [f64; MAX_P],
-    na: usize,
-    nb: usize,
-    delay: usize,
-}
-
-impl Theta {
-    fn new(est: &Estimate, delay: usize) -> Result<Self, ParamError> {
-        let (na, nb) = structure(est)?;
-        check_delay(delay)?;
-        let mut v = [0.0; MAX_P];
-        let flat = theta_of(est);
-        v[..flat.len()].copy_from_slice(&flat);
-        Ok(Self { v, na, nb, delay })
-    }
-    fn p(&self) -> usize {
-        self.na + self.nb + 4
-    }
-    fn im2(&self) -> usize {
-        self.na + self.nb + 1
-    }
-    fn estimate(&self) -> Estimate {
-        let (na, nb, p) = (self.na, self.nb, self.p());
-        Estimate {
-            a: self.v[..na].to_vec(),
-            b: self.v[na..=na + nb].to_vec(),
-            m1: 1.0,
-            m2: self.v[p - 3],
-            c1: self.v[p - 2],
-            c2: self.v[p - 1],
-        }
-    }
-}
-
-/// Samples per mode: up, down, held.
-type Modes = [usize; 3];
-
-/// The state of the simulated model between samples: x^(k-1..k-4) with their sensitivities, w^(k-1) and
-/// dw^(k-1)/dtheta. [`propagate`] runs it over a record; the recursive estimator of [`online`] steps it one
-/// sample at a time with a theta that changes between samples.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-struct SimState {
-    /// Ring of x^(k-1..k-4): slot `(pos + i) & 3` holds lag i + 1.
-    xh: [f64; MAX_ORDER],
-    /// The sensitivities of `xh`, same slots.
-    dxh: [[f64; MAX_P]; MAX_ORDER],
-    pos: usize,
-    w_prev: f64,
-    /// dw^(k-1)/dtheta (kept through held samples).
-    dw: [f64; MAX_P],
-}
-
-/// Index of the mode a sample took: up, down, held (the order of [`Modes`]).
-const UP: usize = 0;
-const DOWN: usize = 1;
-const HELD: usize = 2;
-
-impl SimState {
-    /// All signals zero (before the first sample, as in the plant).
-    const ZERO: Self = Self {
-        xh: [0.0; MAX_ORDER],
-        dxh: [[0.0; MAX_P]; MAX_ORDER],
-        pos: 0,
-        w_prev: 0.0,
-        dw: [0.0; MAX_P],
-    };
-
-    /// x^(k) of the last sample stepped (the linear block's output, before the backlash).
-    fn last_x(&self) -> f64 {
-        self.xh[self.pos]
-    }
-
-    /// Sample k at `th`, with `u_lag(j)` = u(k - d - j) (0 before the record): returns w^(k) and its mode
-    /// ([`UP`], [`DOWN`], [`HELD`]); with `SENS` the sensitivities dw^(k)/dtheta are left in `self.dw`
-    /// (otherwise they stay zero). No allocation.
-    #[inline(always)]
-    fn step<const SENS: bool>(&mut self, th: &Theta, u_lag: impl Fn(usize) -> f64) -> (f64, usize) {
-        let (na, nb) = (th.na, th.nb);
-        let nl = na + nb + 1;
-        let (im2, ic1, ic2) = (nl, nl + 1, nl + 2);
-        let v = &th.v;
-        let (m2, c1, c2) = (v[im2], v[ic1], v[ic2]);
-        let mut x = 0.0;
-        let mut dx = [0.0f64; MAX_P];
-        for i in 0..na {
-            let s = (self.pos + i) & (MAX_ORDER - 1);
-            let (ai, xp) = (v[i], self.xh[s]);
-            x -= ai * xp;
-            if SENS {
-                dx[i] -= xp;
-                for (q, dh) in dx[..nl].iter_mut().zip(&self.dxh[s][..nl]) {
-                    *q -= ai * dh;
-                }
-            }
-        }
-        for j in 0..=nb {
-            let uu = u_lag(j);
-            x += v[na + j] * uu;
-            if SENS {
-                dx[na + j] += uu;
-            }
-        }
-        let (w, mode) = backlash_step(x, self.w_prev, m2, c1, c2);
-        let dw = &mut self.dw;
-        if SENS && mode == UP {
-            dw[..nl].copy_from_slice(&dx[..nl]);
-            dw[im2] = 0.0;
-            dw[ic1] = -1.0;
-            dw[ic2] = 0.0;
-        } else if SENS && mode == DOWN {
-            for (o, s) in dw[..nl].iter_mut().zip(&dx[..nl]) {
-                *o = m2 * s;
-            }
-            dw[im2] = x + c2;
-            dw[ic1] = 0.0;
-            dw[ic2] = m2;
-        }
-        self.pos = (self.pos + MAX_ORDER - 1) & (MAX_ORDER - 1);
-        self.xh[self.pos] = x;
-        if SENS {
-            self.dxh[self.pos] = dx;
-        }
-        self.w_prev = w;
-        (w, mode)
-    }
-}
-
-/// The backlash of the model on the linear block's output `x` after the output `w_prev`, with slope `m2` of
-/// the lower border and gaps `c1`, `c2`: the output and its mode ([`UP`], [`DOWN`], [`HELD`]).
-#[inline(always)]
-fn backlash_step(x: f64, w_prev: f64, m2: f64, c1: f64, c2: f64) -> (f64, usize) {
-    if x > w_prev + c1 {
-        (x - c1, UP)
-    } else if x < w_prev / m2 - c2 {
-        (m2 * (x + c2), DOWN)
-    } else {
-        (w_prev, HELD)
-    }
-}
-
-/// Simulate the model over `u`, calling `visit(k, w^(k), dw^(k)/dtheta)` for every sample (the sensitivity
-/// slice has p entries; with `SENS = false` it is all zeros and not computed). No allocation. Returns the
-/// samples per mode and the state after the last sample.
-fn propagate_state<const SENS: bool>(
-    th: &Theta,
-    u: &[f64],
-    mut visit: impl FnMut(usize, f64, &[f64]),
-) -> (Modes, SimState) {
-    let (d, p) = (th.delay, th.p());
-    let mut s = SimState::ZERO;
-    let mut modes = [0usize; 3];
-    for k in 0..u.len() {
-        let (w, mode) = s.step::<SENS>(th, |j| if k >= d + j { u[k - d - j] } else { 0.0 });
-        modes[mode] += 1;
-        visit(k, w, &s.dw[..p]);
-    }
-    (modes, s)
-}
-
-/// [`propagate_state`] without the final state.
-fn propagate<const SENS: bool>(
-    th: &Theta,
-    u: &[f64],
-    visit: impl FnMut(usize, f64, &[f64]),
-) -> Modes {
-    propagate_state::<SENS>(th, u, visit).0
-}
-
-const _: () = assert!(MAX_ORDER.is_power_of_two());
-
-/// Cost, `J^T J` (upper triangle), `J^T r` and the modes at theta.
-#[derive(Debug, Clone, Copy)]
-struct Normal {
-    cost: f64,
-    h: [[f64; MAX_P]; MAX_P],
-    g: [f64; MAX_P],
-    modes: Modes,
-}
-
-fn normal_equations(th: &Theta, u: &[f64], y: &[f64]) -> Normal {
-    let p = th.p();
-    let mut h = [[0.0f64; MAX_P]; MAX_P];
-    let mut g = [0.0f64; MAX_P];
-    let mut cost = 0.0;
-    let modes = propagate::<true>(th, u, |k, w, dw| {
-        let r = y[k] - w;
-        cost += r * r;
-        for q in 0..p {
-            let dq = dw[q];
-            g[q] += dq * r;
-            for (hr, dr) in h[q][q..p].iter_mut().zip(&dw[q..p]) {
-                *hr += dq * dr;
-            }
-        }
-    });
-    Normal { cost, h, g, modes }
-}
-
-fn cost_only(th: &Theta, u: &[f64], y: &[f64]) -> (f64, Modes) {
-    let mut cost = 0.0;
-    let modes = propagate::<false>(th, u, |k, w, _| {
-        let r = y[k] - w;
-        cost += r * r;
-    });
-    (cost, modes)
-}
-
-/// The full symmetric `J^T J` as a matrix.
-fn info_matrix(n: &Normal, p: usize) -> DMatrix<f64> {
-    DMatrix::from_fn(p, p, |i, j| if i <= j { n.h[i][j] } else { n.h[j][i] })
-}
-
 /// Simulated backlash output w^ of an estimate (m1 as given; [`plant_of`] semantics) on `u`.
 pub fn simulate(est: &Estimate, delay: usize, u: &[f64]) -> Result<Vec<f64>, OeError> {
     let th = Theta::new(&normalised(est), delay)?;
@@ -817,194 +600,6 @@ fn check_finite(signal: &'static str, v: &[f64]) -> Result<(), OeError> {
         Some(index) => Err(OeError::NonFinite { signal, index }),
         None => Ok(()),
     }
-}
-
-/// Outcome of one Levenberg-Marquardt run.
-#[derive(Debug, Clone, Copy)]
-struct Lm {
-    theta: Theta,
-    ne: Normal,
-    iterations: usize,
-    converged: bool,
-}
-
-/// Solve `(H + lambda D) delta = g` with `D = diag(H)` floored at 1e-12 max diag (so that a parameter with
-/// no information this iteration still gets a finite, tiny step).
-fn lm_step(ne: &Normal, p: usize, lambda: f64) -> Option<DVector<f64>> {
-    let dmax = (0..p).map(|i| ne.h[i][i]).fold(0.0, f64::max).max(1e-300);
-    let a = DMatrix::from_fn(p, p, |i, j| {
-        let v = if i <= j { ne.h[i][j] } else { ne.h[j][i] };
-        if i == j {
-            v + lambda * v.max(1e-12 * dmax)
-        } else {
-            v
-        }
-    });
-    let g = DVector::from_iterator(p, ne.g[..p].iter().copied());
-    let delta = a.cholesky()?.solve(&g);
-    delta.iter().all(|v| v.is_finite()).then_some(delta)
-}
-
-/// `g^T H^-1 g` (the decrease of V the undamped Gauss-Newton step predicts), if H is positive definite.
-fn gn_decrement(ne: &Normal, p: usize) -> Option<f64> {
-    let h = info_matrix(ne, p);
-    let g = DVector::from_iterator(p, ne.g[..p].iter().copied());
-    let step = h.cholesky()?.solve(&g);
-    let d = step.dot(&g);
-    d.is_finite().then_some(d)
-}
-
-/// The Gauss-Newton step H^-1 g is shorter than STEP_SE standard errors in the metric of the estimate's
-/// covariance s^2 H^-1 (g^T H^-1 g <= STEP_SE^2 s^2), `n` samples: a statistical convergence test.
-fn step_is_insignificant(ne: &Normal, p: usize, n: usize) -> bool {
-    gn_decrement(ne, p).is_some_and(|dec| {
-        let s2 = ne.cost / (n - p) as f64;
-        dec <= STEP_SE * STEP_SE * s2
-    })
-}
-
-/// Predicted decrease of the linearised cost for the step `delta` at damping `lambda`:
-/// delta^T g + lambda delta^T D delta (> 0).
-fn predicted_decrease(ne: &Normal, delta: &DVector<f64>, p: usize, lambda: f64) -> f64 {
-    let dmax = (0..p).map(|i| ne.h[i][i]).fold(0.0, f64::max);
-    (0..p)
-        .map(|i| {
-            let dii = ne.h[i][i].max(1e-12 * dmax);
-            delta[i] * ne.g[i] + lambda * dii * delta[i] * delta[i]
-        })
-        .sum()
-}
-
-/// The Levenberg-Marquardt damping (Nielsen's update).
-struct Damping {
-    lambda: f64,
-    nu: f64,
-}
-
-impl Damping {
-    /// After a rejected step: more damping; `false` once it exceeds LAMBDA_MAX (no step can decrease the
-    /// cost any more).
-    fn reject(&mut self) -> bool {
-        self.lambda *= self.nu;
-        self.nu *= 2.0;
-        self.lambda <= LAMBDA_MAX
-    }
-
-    /// After an accepted step with gain ratio `rho` (actual over predicted decrease).
-    fn accept(&mut self, rho: f64) {
-        self.lambda =
-            (self.lambda * (1.0 / 3.0f64).max(1.0 - (2.0 * rho - 1.0).powi(3))).max(1e-15);
-        self.nu = 2.0;
-    }
-}
-
-fn levenberg_marquardt(th0: Theta, u: &[f64], y: &[f64], max_iter: usize, tol: f64) -> Lm {
-    let p = th0.p();
-    let im2 = th0.im2();
-    let mut th = th0;
-    let mut ne = normal_equations(&th, u, y);
-    let mut damping = Damping {
-        lambda: 1e-3,
-        nu: 2.0,
-    };
-    let mut converged = false;
-    let mut iterations = 0;
-    while iterations < max_iter {
-        if ne.cost == 0.0 || step_is_insignificant(&ne, p, u.len()) {
-            converged = true;
-            break;
-        }
-        iterations += 1;
-        let Some(delta) = lm_step(&ne, p, damping.lambda) else {
-            if !damping.reject() {
-                converged = true;
-                break;
-            }
-            continue;
-        };
-        let mut trial = th;
-        for (t, d) in trial.v[..p].iter_mut().zip(delta.iter()) {
-            *t += d;
-        }
-        let small = (0..p).all(|i| delta[i].abs() <= tol * (th.v[i].abs() + tol));
-        let pred = predicted_decrease(&ne, &delta, p, damping.lambda);
-        let tn = (trial.v[im2] > M2_MIN).then(|| normal_equations(&trial, u, y));
-        let actual = tn.map_or(f64::NEG_INFINITY, |t| ne.cost - t.cost);
-        // MINPACK's test: neither the actual nor the predicted relative decrease exceeds FTOL.
-        let flat = pred <= FTOL * ne.cost && actual.abs() <= FTOL * ne.cost;
-        match tn {
-            Some(tn) if tn.cost.is_finite() && tn.cost < ne.cost => {
-                damping.accept(if pred > 0.0 { actual / pred } else { 0.0 });
-                th = trial;
-                ne = tn;
-                if small || flat {
-                    converged = true;
-                    break;
-                }
-            }
-            // Even a negligible step does not decrease the cost: a minimum at the resolution of the
-            // (piecewise smooth) cost.
-            _ if small || flat => {
-                converged = true;
-                break;
-            }
-            _ => {
-                if !damping.reject() {
-                    converged = true;
-                    break;
-                }
-            }
-        }
-    }
-    Lm {
-        theta: th,
-        ne,
-        iterations,
-        converged,
-    }
-}
-
-/// Repair a starting point (module docs): positive m2, a stable-looking linear block, both borders engaged
-/// when the data move that way.
-fn repair_start(mut th: Theta, u: &[f64], y: &[f64]) -> Theta {
-    let p = th.p();
-    let im2 = th.im2();
-    for i in 0..p {
-        if !th.v[i].is_finite() {
-            th.v[i] = if i == im2 { 1.0 } else { 0.0 };
-        }
-    }
-    if th.v[im2] <= M2_MIN {
-        th.v[im2] = 1.0;
-    }
-    let y_max = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let bound = 1e3 * (1.0 + y_max);
-    let mut w_max = 0.0f64;
-    let mut finite = true;
-    propagate::<false>(&th, u, |_, w, _| {
-        finite &= w.is_finite();
-        w_max = w_max.max(w.abs());
-    });
-    if !finite || w_max > bound {
-        th.v[..th.na].iter_mut().for_each(|a| *a = 0.0);
-    }
-    let rises = y.windows(2).any(|w| w[1] > w[0]);
-    let falls = y.windows(2).any(|w| w[1] < w[0]);
-    for _ in 0..40 {
-        let (_, modes) = cost_only(&th, u, y);
-        let need_up = rises && modes[0] == 0 && th.v[p - 2] > 0.0;
-        let need_down = falls && modes[1] == 0 && th.v[p - 1] > 0.0;
-        if !(need_up || need_down) {
-            break;
-        }
-        if need_up {
-            th.v[p - 2] *= 0.5;
-        }
-        if need_down {
-            th.v[p - 1] *= 0.5;
-        }
-    }
-    th
 }
 
 fn check_record(cfg: &OeConfig, u: &[f64], y: &[f64]) -> Result<(), OeError> {

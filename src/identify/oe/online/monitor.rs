@@ -124,7 +124,7 @@
 //! No allocation per sample: the state is a few fixed-size arrays (the FMU's contract).
 
 use super::{Refined, Theta};
-use crate::identify::oe::{SimState, backlash_step};
+use crate::identify::oe::sim::{SimState, backlash_step};
 use serde::{Deserialize, Serialize};
 
 /// The bank of CUSUMs: the growth each is tuned to, as a multiple of [`MonitorConfig::wear_ratio`] (module
