@@ -22,6 +22,7 @@ pub mod fmi2;
 pub mod fmi3;
 pub mod fmus;
 pub mod identify;
+#[cfg(feature = "cli")]
 pub mod io;
 pub mod plant;
 #[cfg(feature = "cli")]

@@ -4,6 +4,7 @@
 //! - [`frequency`]: the frequency-domain LS / separable LS of paper 003 (sine experiments).
 //! - [`oe`]: offline output-error refinement, standard errors, Cramer-Rao bound, Monte Carlo study.
 
+#[cfg(feature = "cli")]
 pub mod frequency;
 pub mod mrgia;
 pub mod oe;
