@@ -6,7 +6,8 @@
 # --workspace: cargo unifies the dependencies' features over the packages it builds, and the extension's own
 # (NumPy's ndarray, PyO3's macros) change those of dependencies the crate shares. Built for the default members
 # alone, the crate would be compiled a second time by the extension's build (`maturin develop`); built with the
-# extension's package, `maturin develop` finds it done and compiles only PyO3 and the extension.
+# extension's package, `maturin develop` finds it done and compiles only the extension again (maturin strips it,
+# a profile setting of its own).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # The build needs only zig and cargo-zigbuild from the Python environment (the FMUs' portable binary): they come
