@@ -58,9 +58,10 @@ step "the manylinux2014 wheel (the one build of the Python extension, on the bui
 reusing_release_build bash scripts/build_wheel.sh
 .venv/bin/python -m pip install -q --disable-pip-version-check --force-reinstall --no-deps \
     target/wheels/backlash_fmu-*manylinux*.whl
-# The Python tests keep one core busy for most of their time, and so do `cargo test`, tests/cross and the compliance
-# checks, one after another: the Python tests run beside them (both cores were idle a fifth of the time while
-# `cargo test` ran alone), their output kept in a log and printed when they end.
+step "cargo test --release"
+cargo test --release
+# The Python tests, and tests/cross with the compliance checks, keep one core each busy for most of their time:
+# they run side by side, the Python tests' output kept in a log and printed when they end.
 python_tests() {
     .venv/bin/python -m pytest -q --durations=10 tests/python --ignore=tests/python/test_api.py &&
         echo "-- the Python API tests in a fresh virtual environment holding only the wheel" &&
@@ -72,8 +73,6 @@ python_tests() {
 }
 step "pytest, then the Python API tests in a fresh virtual environment holding only the wheel (in the background: target/python-tests.log)"
 in_background target/python-tests.log python_tests
-step "cargo test --release"
-cargo test --release
 step "every platform: tests/cross on target/dist (Windows under Wine, aarch64 under QEMU)"
 bash scripts/cross_test.sh --no-dist
 step "compliance: valgrind, fmutool, long fuzz, 1 GB file in bounded memory"
