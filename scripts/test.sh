@@ -26,10 +26,6 @@ cargo clippy --workspace --all-targets -- -D warnings
 cargo clippy --lib --no-default-features -- -D warnings
 step "cargo doc (broken or private links in the documentation are errors)"
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
-# With the tests and examples: the tests' dev-dependencies enable more features of shared dependencies (serde,
-# libc, flate2, ...), and cargo compiles the crate's library once per set of features. Built here with the
-# tests' set, the program, the tests and `cargo test` below share one build of the crate; a plain
-# `cargo build --release` would compile it a second time (about a minute), so no step here runs one.
 step "waiting for the Python environment"
 await_background "setting up the Python environment"
 # `reusing_release_build <command...>` runs the command and fails if it compiled a second copy of a crate that the
@@ -50,6 +46,10 @@ reusing_release_build() {
         exit 1
     fi
 }
+# With the tests and examples: the tests' dev-dependencies enable more features of shared dependencies (serde,
+# libc, flate2, ...), and cargo compiles the crate's library once per set of features. Built here with the
+# tests' set, the program, the tests and `cargo test` below share one build of the crate; a plain
+# `cargo build --release` would compile it a second time (about a minute), so no step here runs one.
 step "cargo build --release --lib --bins --tests --examples (both FMUs, the CLI, the tests)"
 cargo build --release --lib --bins --tests --examples
 step "every platform's FMUs: scripts/dist.sh (target/dist)"
