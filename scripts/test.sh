@@ -6,7 +6,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 step() { printf '== [%dm%02ds] %s\n' $((SECONDS / 60)) $((SECONDS % 60)) "$*"; }
-# A run needs about 5 GB of disk (target/ and .venv/ at their largest, with the tests' temporary files).
+# A run needs about 4.5 GB of disk (target/ and .venv/ at their largest, with the tests' temporary files).
 step "disk: $(df -h --output=avail . | tail -1 | tr -d ' ') free here"
 step "setup: system packages"
 bash scripts/setup.sh --system
