@@ -633,7 +633,9 @@ pub fn diagnosis_json(d: &Diagnosis, u: &[f64], ts: Option<f64>, decimate: usize
     out["closest_alternative"] = json!(d.closest_alternative());
     let s = d.structure.chosen;
     let params = s.na + s.nb + 1 + 3;
-    out["warnings"] = json!(InputCheck::of(u).warnings(d.n_fit as u64, params));
+    let mut warnings = InputCheck::of(u).warnings(d.n_fit as u64, params);
+    warnings.extend(d.explained.warnings(d.after_rmse()));
+    out["warnings"] = json!(warnings);
     out
 }
 

@@ -204,6 +204,10 @@ fn print_text(
     report: Option<&Path>,
     out: &Value,
 ) {
+    println!("{}", d.backlash.headline());
+    for r in &d.backlash.reasons {
+        println!("  - {r}");
+    }
     println!(
         "Diagnosis of {} ({} samples{}; fit on the first {}, {} held out)",
         args.file.display(),
@@ -253,20 +257,36 @@ fn print_steps(d: &Diagnosis) {
     }
     let mut before = d.base_heldout_rmse;
     for (i, c) in steps.iter().enumerate() {
+        let change = match c.one_step {
+            Some(o) => format!(
+                "one-step prediction RMSE {} -> {} (the free run, {}, is unchanged by a noise model)",
+                number(o.before),
+                number(o.after),
+                number(c.heldout_rmse)
+            ),
+            None => format!(
+                "held-out RMSE {} -> {} (free-run simulation)",
+                number(before),
+                number(c.heldout_rmse)
+            ),
+        };
         println!(
-            "  step {}: {} (pointed to by: {}); held-out RMSE {} -> {} ({} error)",
+            "  step {}: {} (pointed to by: {}); {change}",
             i + 1,
             c.id,
             c.pointed_by.first().copied().unwrap_or("-"),
-            number(before),
-            number(c.heldout_rmse),
-            c.error_kind
         );
         before = c.heldout_rmse;
     }
     if !steps.is_empty() {
         println!("  loop: {}", d.stopped);
     }
+    println!(
+        "  held-out fit of the final model: {:.1}% (free-run RMSE {}; predicting the fit part's mean: {})",
+        d.explained.fit_percent,
+        number(d.after_rmse()),
+        number(d.explained.constant_rmse)
+    );
 }
 
 /// The residual tests and the candidates of the first round.

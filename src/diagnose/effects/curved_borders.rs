@@ -42,6 +42,11 @@ impl Element for CurvedBorders {
         true
     }
 
+    /// Without a gap both borders are one curve: the lower border's terms are the upper's.
+    fn zero_gap_ties(&self, _ext: &Extension) -> Option<Vec<(usize, usize, f64)>> {
+        Some(vec![(2, 0, 1.0), (3, 1, 1.0)])
+    }
+
     /// A tenth of the output's scale at one scale of x from the border's zero.
     fn typical(&self, _ext: &Extension, s: &Scales) -> Vec<f64> {
         let (ys, xs) = (s.y, s.x);
@@ -57,6 +62,11 @@ impl Element for CurvedBorders {
 impl Effect for CurvedBorders {
     fn id(&self) -> EffectId {
         ID
+    }
+
+    /// A memoryless curve after the linear block (the zero-gap borders) bends as curved borders do.
+    fn imitates_play(&self) -> bool {
+        true
     }
 
     fn describe(&self) -> &'static str {

@@ -49,6 +49,11 @@ impl Effect for DeadZone {
         ID
     }
 
+    /// An input dead zone holds the output near the centre, as a gap holds it after a reversal.
+    fn imitates_play(&self) -> bool {
+        true
+    }
+
     fn describe(&self) -> &'static str {
         "an actuator or valve dead zone on the input: |u| up to a fitted width moves nothing, beyond it the input acts shifted by the width, u - width sign(u)"
     }

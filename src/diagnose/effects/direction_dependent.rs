@@ -81,6 +81,11 @@ impl Effect for DirectionDependent {
         ID
     }
 
+    /// Different dynamics up and down make two branches, as two borders do.
+    fn imitates_play(&self) -> bool {
+        true
+    }
+
     fn describe(&self) -> &'static str {
         "direction-dependent dynamics: the linear block has a second set of coefficients (same orders) for while its output falls, as a motor driven up and coasting down"
     }

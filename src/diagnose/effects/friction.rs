@@ -74,6 +74,11 @@ impl Effect for Friction {
         ID
     }
 
+    /// An elasto-plastic element is a play acting on the force: the same loop read another way.
+    fn imitates_play(&self) -> bool {
+        true
+    }
+
     fn describe(&self) -> &'static str {
         "an elasto-plastic Coulomb element with the backlash, slipping at F+ / -F-: after the backlash output (series, f(k) = clamp(f(k-1) + w(k) - w(k-1), -F-, F+)) or with the play inside its spring (contact: the force unloads, crosses the play at zero, reloads); the better-fitting form is kept"
     }

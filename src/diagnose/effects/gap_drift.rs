@@ -39,6 +39,12 @@ impl Element for GapDrift {
         vec![0.1 * s.y; 2]
     }
 
+    /// Without a gap the gaps drift oppositely (c2's rate is minus c1's): the one curve's level drifts, as
+    /// a slowly moving operating point does, and the gap stays zero.
+    fn zero_gap_ties(&self, _ext: &Extension) -> Option<Vec<(usize, usize, f64)>> {
+        Some(vec![(1, 0, -1.0)])
+    }
+
     /// The rates scaled by `time_scale` (the total drift over that many samples), so that they have the
     /// gaps' magnitude.
     fn pack(&self, ext: &Extension, time_scale: f64) -> Vec<f64> {

@@ -114,6 +114,13 @@ pub trait Effect: Sync {
         None
     }
 
+    /// Whether this effect, without a gap, explains records that a model with play also fits (a smooth
+    /// curve, friction, direction-dependent dynamics, a dead zone, clipping): the verdict on play tries the
+    /// zero-gap model with it added, and play is present only where the model with a gap beats that too.
+    fn imitates_play(&self) -> bool {
+        false
+    }
+
     /// Why this effect is not a candidate in spite of a rejecting test (evidence that belongs to the
     /// input), if so.
     fn set_aside(&self, _screen: &Screening) -> Option<String> {

@@ -94,6 +94,11 @@ impl Effect for Saturation {
         ID
     }
 
+    /// Clipping holds the output at its ends, as a border holds it after a reversal.
+    fn imitates_play(&self) -> bool {
+        true
+    }
+
     fn describe(&self) -> &'static str {
         "the output clipped at fitted levels lo and hi"
     }

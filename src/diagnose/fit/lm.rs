@@ -375,6 +375,86 @@ pub fn covariance<R: Residuals + ?Sized>(
     Some(inv * s2)
 }
 
+/// The variance of a linear combination `w . theta` of a least-squares estimate, two ways.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CombinationVariance {
+    /// `s^2 w^T (J^T J)^-1 w`: right when the residuals are white.
+    pub classical: f64,
+    /// The Newey-West sandwich `v^T S v`, `v = (J^T J)^-1 w`, `S` the Bartlett-weighted long-run covariance
+    /// of the scores `J_t r_t` over `lags` lags: right when the residuals are autocorrelated (a model that
+    /// misses something leaves them so), where the classical one is too small.
+    pub sandwich: f64,
+    /// The Bartlett window's lags.
+    pub lags: usize,
+}
+
+/// The longest Bartlett window of [`combination_variance`] (lags), and its share of the record at most.
+const MAX_HAC_LAGS: usize = 2000;
+const MAX_HAC_SHARE: f64 = 0.1;
+
+/// [`CombinationVariance`] of `w . theta` at `theta`; `None` when the information matrix is singular or the
+/// point is not valid.
+pub fn combination_variance<R: Residuals + ?Sized>(
+    f: &R,
+    theta: &[f64],
+    typ: &[f64],
+    fd_rel: f64,
+    w: &[f64],
+) -> Option<CombinationVariance> {
+    let p = theta.len();
+    let mut r = Vec::new();
+    let cost = evaluate(f, theta, &mut r)?;
+    let n = r.len();
+    if n <= p || w.len() != p {
+        return None;
+    }
+    let free: Vec<usize> = (0..p).collect();
+    let mut jac = vec![0.0; n * p];
+    jacobian(f, theta, &r, typ, &free, fd_rel, &mut jac);
+    let (h, _) = normal_equations(&jac, &r, p);
+    if (0..p).any(|i| h[(i, i)] <= 0.0) {
+        return None;
+    }
+    let v = h.cholesky()?.solve(&DVector::from_column_slice(w));
+    let classical = cost / (n - p) as f64 * v.dot(&DVector::from_column_slice(w));
+    // The influence of each sample on w . theta: (v . J_t) r_t.
+    let score: Vec<f64> = (0..n)
+        .map(|t| (0..p).map(|j| v[j] * jac[j * n + t]).sum::<f64>() * r[t])
+        .collect();
+    let lags = hac_lags(&r);
+    let gamma = |l: usize| (l..n).map(|t| score[t] * score[t - l]).sum::<f64>();
+    let mut sandwich = gamma(0);
+    for l in 1..=lags {
+        sandwich += 2.0 * (1.0 - l as f64 / (lags + 1) as f64) * gamma(l);
+    }
+    // Negative long-run correlation cannot make an estimate more precise than white residuals would.
+    let sandwich = sandwich.max(classical);
+    Some(CombinationVariance {
+        classical,
+        sandwich,
+        lags,
+    })
+}
+
+/// The Bartlett window for residuals `r`: out to the first lag where their autocorrelation falls below
+/// 2/sqrt(n) (the white-noise band), at least Newey and West's 4 (n/100)^(2/9), at most a tenth of the
+/// record and [`MAX_HAC_LAGS`].
+fn hac_lags(r: &[f64]) -> usize {
+    let n = r.len();
+    let nf = n as f64;
+    let floor = (4.0 * (nf / 100.0).powf(2.0 / 9.0)).floor() as usize;
+    let cap = ((MAX_HAC_SHARE * nf) as usize).min(MAX_HAC_LAGS).max(1);
+    let c0: f64 = r.iter().map(|v| v * v).sum();
+    if c0 <= 0.0 {
+        return floor.min(cap);
+    }
+    let band = 2.0 / nf.sqrt();
+    let first_white = (1..=cap)
+        .find(|&l| (l..n).map(|t| r[t] * r[t - l]).sum::<f64>() / c0 < band)
+        .unwrap_or(cap);
+    first_white.max(floor).min(cap)
+}
+
 /// [`levenberg_marquardt`] from each start; the lowest cost wins. Starts whose simulation fails are skipped.
 pub fn fit_multistart<R: Residuals + ?Sized>(
     f: &R,

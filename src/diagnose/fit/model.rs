@@ -198,6 +198,15 @@ pub trait Element: Sync {
     fn blocks(&self, _ext: &Extension, _other: EffectId) -> bool {
         false
     }
+
+    /// This element in the model with the play pinned at zero (the same borders without a gap): triples
+    /// `(entry, to, scale)` of its packed entries held at `scale` times another (curved borders: the lower
+    /// border's terms are the upper's; a drift of the gaps: the two gaps drift oppositely, which moves the one
+    /// curve's level), or `None` when the element means nothing without a gap, so that the zero-gap model
+    /// leaves it out. Default: kept, no ties.
+    fn zero_gap_ties(&self, _ext: &Extension) -> Option<Vec<(usize, usize, f64)>> {
+        Some(Vec::new())
+    }
 }
 
 /// One extension of the declared model: an effect's element with its parameters.
@@ -422,6 +431,91 @@ impl EffectModel {
         self.base.n_params() + self.exts.iter().map(Extension::n_estimated).sum::<usize>()
     }
 
+    /// The play c1 + c2, in the linear block's output units.
+    pub fn play(&self) -> f64 {
+        self.base.c1 + self.base.c2
+    }
+
+    /// Packed positions of m2, c1 and c2 (see [`BaseModel::pack`]).
+    fn gap_entries(&self) -> [usize; 3] {
+        let i = self.base.na + self.base.nb + 1;
+        [i, i + 1, i + 2]
+    }
+
+    /// The weights of the play c1 + c2 over the packed parameters.
+    pub fn play_weights(&self, time_scale: f64) -> Vec<f64> {
+        let mut w = vec![0.0; self.pack(time_scale).len()];
+        let [_, c1, c2] = self.gap_entries();
+        w[c1] = 1.0;
+        w[c2] = 1.0;
+        w
+    }
+
+    /// The deterministic part: the model without a noise model.
+    pub fn deterministic(&self) -> Self {
+        Self {
+            base: self.base.clone(),
+            exts: self
+                .exts
+                .iter()
+                .filter(|e| e.element.noise_model(e).is_none())
+                .cloned()
+                .collect(),
+        }
+    }
+
+    /// The pins that hold the play at `play` (c2 = play - c1), every other parameter fitted.
+    pub fn play_pins(&self, play: f64, time_scale: f64) -> crate::diagnose::fit::problem::Pins {
+        use crate::diagnose::fit::problem::{Pin, Pins};
+        let mut pins = Pins::free(self.pack(time_scale).len());
+        let [_, c1, c2] = self.gap_entries();
+        pins.0[c2] = Pin::Tied {
+            to: c1,
+            scale: -1.0,
+            offset: play,
+        };
+        pins
+    }
+
+    /// The same borders without a gap, the nearest play-free model (paper 003's memoryless nonlinearity is
+    /// the zero-gap case of its backlash): m2 = m1, c2 = -c1, each element's own ties (curved borders: both
+    /// borders the same curve); the noise model and elements that mean nothing without a gap left out. The
+    /// model moved there (the gaps about their middle, tied entries set equal) and the pins that hold it.
+    pub fn zero_gap(&self, time_scale: f64) -> (Self, crate::diagnose::fit::problem::Pins) {
+        use crate::diagnose::fit::problem::Pin;
+        let kept: Vec<(Extension, Vec<(usize, usize, f64)>)> = self
+            .deterministic()
+            .exts
+            .into_iter()
+            .filter_map(|e| e.element.zero_gap_ties(&e).map(|t| (e, t)))
+            .collect();
+        let model = Self {
+            base: self.base.clone(),
+            exts: kept.iter().map(|(e, _)| e.clone()).collect(),
+        };
+        let mut pins = model.play_pins(0.0, time_scale);
+        let [m2, _, _] = model.gap_entries();
+        pins.0[m2] = Pin::Fixed(self.base.m1);
+        let mut at = model.base.n_params();
+        for (e, ties) in &kept {
+            for &(entry, to, scale) in ties {
+                pins.0[at + entry] = Pin::Tied {
+                    to: at + to,
+                    scale,
+                    offset: 0.0,
+                };
+            }
+            at += e.n_fitted();
+        }
+        let mid = 0.5 * (model.base.c1 - model.base.c2);
+        let moved = model.pack(time_scale);
+        let mut moved = pins.expand(&pins.reduce(&moved));
+        let [_, c1, _] = model.gap_entries();
+        moved[c1] = mid;
+        let moved = pins.expand(&pins.reduce(&moved));
+        (model.unpack(&moved, time_scale), pins)
+    }
+
     /// What every extension switches on in the simulation.
     pub fn elements(&self) -> Elements {
         let mut on = Elements::default();
@@ -523,6 +617,9 @@ struct Runner<'a> {
     /// borders' own drift.
     slack: f64,
     sensor_needed: bool,
+    /// The borders coincide (no gap, one curve): the output follows the curve wherever x goes, and a curve
+    /// that falls where x rises moves against x with no chatter.
+    memoryless: bool,
     limit: f64,
     n: usize,
 }
@@ -546,6 +643,7 @@ impl<'a> Runner<'a> {
             };
         Self {
             base: &m.base,
+            memoryless: is_memoryless(&m.base, &eff),
             contact: eff
                 .friction
                 .is_some_and(|f| f.form == FrictionForm::Contact),
@@ -653,10 +751,10 @@ impl<'a> Runner<'a> {
                 let inverted = effects::zone_inverted(&b, curve, x);
                 visits += usize::from(inverted);
                 let against = k > 0 && !self.moves_with_x(mode, x - sim.x[k - 1]);
-                if against && !inverted && !was_inverted {
+                if against && !inverted && !was_inverted && !self.memoryless {
                     return false;
                 }
-                flipped |= against;
+                flipped |= against && !self.memoryless;
                 if flipped && visits > budget {
                     return false;
                 }
@@ -697,6 +795,21 @@ impl Simulation {
         self.y.push(y);
         self.mode.push(mode);
     }
+}
+
+/// Whether the backlash of `base` with the effects `eff` has no memory: no gap (c1 + c2 = 0, and the gaps'
+/// drifts opposite), equal slopes and the same curve on both borders.
+fn is_memoryless(base: &BaseModel, eff: &Effects) -> bool {
+    base.c1 + base.c2 == 0.0
+        && base.m1 == base.m2
+        && eff
+            .gap_drift
+            .as_ref()
+            .is_none_or(|d| d.c1_rate + d.c2_rate == 0.0)
+        && eff
+            .curved_borders
+            .as_ref()
+            .is_none_or(|c| c.upper == c.lower)
 }
 
 /// The stability test of the linear block (shared with the recursive estimator).

@@ -15,7 +15,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::diagnose::fit::lm::{LmOptions, cost_of, covariance, evaluate, levenberg_marquardt};
+use crate::diagnose::fit::lm::{LmOptions, cost_of, evaluate, levenberg_marquardt};
 use crate::diagnose::fit::model::{
     BaseModel, EffectModel, Objective, Rest, Scales, Simulation, coefficient_scales, is_stable,
 };
@@ -328,22 +328,6 @@ impl<'a> Problem<'a> {
         )
         .ok()?;
         Some((fit.theta, fit.cost))
-    }
-
-    /// Covariance of the plain model's parameters at `m` (its fit-part information matrix).
-    pub fn plain_covariance(&self, m: &BaseModel) -> Option<nalgebra::DMatrix<f64>> {
-        let template = EffectModel::plain(m.clone());
-        let f = |th: &[f64], out: &mut Vec<f64>| {
-            let mm = template.unpack(th, self.time_scale);
-            SCRATCH
-                .with_borrow_mut(|s| self.residuals(&mm, Objective::Simulation, self.n_fit, s, out))
-        };
-        covariance(
-            &f,
-            &template.pack(self.time_scale),
-            &self.typical(&template),
-            self.lm.fd_rel,
-        )
     }
 
     /// MRGIA (recommended setting) on the fit part, as a start.
@@ -868,3 +852,5 @@ mod tests {
 
 #[cfg(test)]
 mod mutation_tests;
+mod pinned;
+pub use pinned::{Pin, Pins};

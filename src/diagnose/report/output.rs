@@ -6,7 +6,9 @@ use crate::diagnose::effects::{EffectId, Fitted, Parameters};
 use crate::diagnose::fit::model::{BaseModel, EffectModel};
 use crate::diagnose::fit::structure::{InitialState, StructureChoice};
 use crate::diagnose::search::decision::DECISION_RULE;
-use crate::diagnose::search::engine::{BacklashSupport, Candidate, Diagnosis, OneStep, TestResult};
+use crate::diagnose::search::engine::{
+    BacklashSupport, Candidate, Diagnosis, Explained, OneStep, OperatingPoint, TestResult,
+};
 
 /// The parameters of `id` fitted as `m` over `n` samples, against the `current` model, as the effect reports
 /// them; `ts` (sample period, when known) adds per-second forms of per-sample parameters.
@@ -103,6 +105,10 @@ pub struct RoundOut<'a> {
 pub struct After {
     /// Held-out free-run RMSE (always a simulation error, comparable with `before.rmse`).
     pub rmse: f64,
+    /// The same error as a normalised fit, percent (see [`Explained`]).
+    pub fit_percent: f64,
+    /// The held-out error of predicting the fit part's mean.
+    pub constant_rmse: f64,
     pub error_kind: &'static str,
     /// With a noise model: the one-step prediction errors on the held-out part before and after it.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -167,6 +173,13 @@ pub struct DiagnosisOut<'a> {
     pub samples: usize,
     pub fit_samples: usize,
     pub heldout_samples: usize,
+    /// The levels every fit worked about (the fit part's means).
+    pub operating_point: OperatingPoint,
+    /// The final model's held-out fit, percent, and the constant predictor's error (also in `after`).
+    pub fit_percent: f64,
+    pub constant_rmse: f64,
+    /// How much the final model explains and how well the held-out part is excited.
+    pub explained: Explained,
 }
 
 impl<'a> DiagnosisOut<'a> {
@@ -189,6 +202,8 @@ impl<'a> DiagnosisOut<'a> {
             stopped: &d.stopped,
             after: After {
                 rmse: d.after_rmse(),
+                fit_percent: d.explained.fit_percent,
+                constant_rmse: d.explained.constant_rmse,
                 error_kind: "simulation",
                 one_step: d.steps().last().and_then(|c| c.one_step),
             },
@@ -221,6 +236,10 @@ impl<'a> DiagnosisOut<'a> {
             samples: d.n,
             fit_samples: d.n_fit,
             heldout_samples: d.n - d.n_fit,
+            operating_point: d.operating_point,
+            fit_percent: d.explained.fit_percent,
+            constant_rmse: d.explained.constant_rmse,
+            explained: d.explained,
         }
     }
 }

@@ -162,19 +162,7 @@ pub struct LinearFit {
     pub output: Vec<f64>,
 }
 
-/// Whether the data support a backlash rather than a straight line.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct BacklashSupport {
-    /// c1 + c2: the width of the play in the linear block's output units.
-    pub play: f64,
-    /// Standard errors from the fit's information matrix (`None`: the record does not determine them).
-    pub play_se: Option<f64>,
-    pub c1_se: Option<f64>,
-    pub c2_se: Option<f64>,
-    pub m2_se: Option<f64>,
-    pub supported: bool,
-    pub verdict: String,
-}
+pub use crate::diagnose::search::presence::{BacklashSupport, Presence};
 
 /// One round of the loop after the first: the model it started from (the previous round's winner) and what
 /// its residual showed.
@@ -235,9 +223,131 @@ pub struct Diagnosis {
     pub later: Vec<Round>,
     /// Why the loop stopped.
     pub stopped: String,
+    /// The levels every fit worked about: the models see `u - operating_point.u` and `y - operating_point.y`
+    /// (their simulated outputs are given back in the record's units).
+    pub operating_point: OperatingPoint,
+    /// How much the final model explains on the held-out part, against a constant.
+    pub explained: Explained,
+}
+
+/// How much the final model explains of the held-out part, and whether that part can judge it.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct Explained {
+    /// 100 (1 - |y - y_hat| / |y - mean(y)|) over the held-out part (MATLAB's NRMSE fit; the mean is the
+    /// held-out part's own): 100 is a perfect model, 0 no better than that mean, negative worse.
+    pub fit_percent: f64,
+    /// The held-out RMSE of predicting the fit part's mean (the first baseline a user tries).
+    pub constant_rmse: f64,
+    /// The input's standard deviation on the held-out part over the fit part's.
+    pub heldout_input_std_ratio: f64,
+    /// The input's range (max - min) on the held-out part over the fit part's.
+    pub heldout_input_range_ratio: f64,
+}
+
+/// Below this fit (percent) the final model explains little of the held-out part.
+pub const LOW_FIT_PERCENT: f64 = 20.0;
+/// A final held-out error above this share of the constant predictor's is no better than a constant.
+pub const NEAR_CONSTANT: f64 = 0.9;
+/// A held-out input whose standard deviation or range is below this share of the fit part's judges little.
+pub const POOR_EXCITATION: f64 = 0.25;
+
+impl Explained {
+    /// The final output `y_hat` against the record `y` about the fit part's mean (`y` here is already a
+    /// deviation from it), and the input `u`'s excitation on both parts.
+    pub fn of(u: &[f64], y: &[f64], y_hat: &[f64], n_fit: usize) -> Self {
+        let (held, model) = (&y[n_fit..], &y_hat[n_fit..]);
+        let err = crate::stats::rms_diff(held, model);
+        let spread = std_dev(held);
+        let range = |v: &[f64]| {
+            v.iter().fold(f64::NEG_INFINITY, |m, a| m.max(*a))
+                - v.iter().fold(f64::INFINITY, |m, a| m.min(*a))
+        };
+        let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { f64::NAN };
+        Self {
+            fit_percent: if spread > 0.0 {
+                100.0 * (1.0 - err / spread)
+            } else {
+                f64::NAN
+            },
+            constant_rmse: crate::stats::rms(held.iter().copied()),
+            heldout_input_std_ratio: ratio(std_dev(&u[n_fit..]), std_dev(&u[..n_fit])),
+            heldout_input_range_ratio: ratio(range(&u[n_fit..]), range(&u[..n_fit])),
+        }
+    }
+
+    /// What a user must know before trusting the held-out numbers, in sentences.
+    pub fn warnings(&self, after_rmse: f64) -> Vec<String> {
+        let mut w = Vec::new();
+        if self.fit_percent < LOW_FIT_PERCENT || after_rmse > NEAR_CONSTANT * self.constant_rmse {
+            w.push(format!(
+                "the final model explains little of the held-out part: fit {:.1}% (below {LOW_FIT_PERCENT:.0}% \
+                 or within {:.0}% of a constant), held-out error {:.4e} against {:.4e} for predicting the fit \
+                 part's mean. Likely reasons: the input does not drive the output much, a second (unmeasured) \
+                 input or set-point moves it, it drifts, or the model class is wrong for this record",
+                self.fit_percent,
+                100.0 * (1.0 - NEAR_CONSTANT),
+                after_rmse,
+                self.constant_rmse
+            ));
+        }
+        let (s, r) = (self.heldout_input_std_ratio, self.heldout_input_range_ratio);
+        if s < POOR_EXCITATION || r < POOR_EXCITATION {
+            w.push(format!(
+                "the held-out part is poorly excited: its input's standard deviation is {:.0}% and its range \
+                 {:.0}% of the fit part's, so its errors judge the models on little (a quiet tail); move the \
+                 split with --fit-fraction or record more excitation after the fit part",
+                100.0 * s,
+                100.0 * r
+            ));
+        }
+        w
+    }
+}
+
+/// The operating point a diagnosis works about: the means of the input and the output over the fit part.
+/// Every fit, start, linear baseline and effect with a centre (dead zone, saturation, quantization, curved
+/// borders) sees deviations from it, so that a record shifted by constants (u + a, y + b), as a sensor's
+/// arbitrary zero shifts it, gets the same answer.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct OperatingPoint {
+    pub u: f64,
+    pub y: f64,
+}
+
+impl OperatingPoint {
+    /// The fit part's means (the first `n_fit` samples).
+    pub fn of(u: &[f64], y: &[f64], n_fit: usize) -> Self {
+        let n = n_fit.min(u.len()).min(y.len());
+        Self {
+            u: crate::stats::mean(&u[..n]),
+            y: crate::stats::mean(&y[..n]),
+        }
+    }
+
+    /// `v - level`, sample by sample.
+    pub fn deviations(&self, v: &[f64], level: f64) -> Vec<f64> {
+        v.iter().map(|a| a - level).collect()
+    }
 }
 
 impl Diagnosis {
+    /// Adds the operating point's output level back to every simulated output the diagnosis keeps (they were
+    /// computed about it), so that they compare with the record as it is.
+    pub(crate) fn restore_outputs(&mut self) {
+        let level = self.operating_point.y;
+        let shift = |v: &mut Vec<f64>| v.iter_mut().for_each(|a| *a += level);
+        shift(&mut self.base_sim.y);
+        shift(&mut self.linear.output);
+        let later = self
+            .later
+            .iter_mut()
+            .flat_map(|r| r.found.candidates.iter_mut());
+        for c in self.candidates.iter_mut().chain(later) {
+            shift(&mut c.output);
+            shift(&mut c.sim.y);
+        }
+    }
+
     pub fn effect(&self) -> Option<&Candidate> {
         self.chosen.map(|i| &self.candidates[i])
     }
@@ -304,10 +414,17 @@ impl Diagnosis {
     /// cross-record validation (free-run errors both).
     pub fn cross_validate(&self, u: &[f64], y: &[f64]) -> Option<CrossValidation> {
         let n = u.len().min(y.len());
-        let limit = sim_limit(u, y);
+        let op = self.operating_point;
+        let (u, y_dev) = (&op.deviations(u, op.u)[..], op.deviations(y, op.y));
+        let limit = sim_limit(u, &y_dev);
         let rest = self.initial.rest_for(u.first().copied().unwrap_or(0.0));
-        let before = self.base.simulate(u, rest, n, limit)?;
-        let after = self.final_model().simulate(u, rest, n, limit)?.y;
+        let mut before = self.base.simulate(u, rest, n, limit)?;
+        let mut after = self.final_model().simulate(u, rest, n, limit)?.y;
+        before
+            .y
+            .iter_mut()
+            .chain(after.iter_mut())
+            .for_each(|a| *a += op.y);
         Some(CrossValidation {
             samples: n,
             y_std: std_dev(&y[..n]),

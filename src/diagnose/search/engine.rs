@@ -84,9 +84,9 @@ use crate::diagnose::fit::problem::{Problem, fit_linear, fit_plain};
 use crate::diagnose::fit::structure::{
     self, InitialState, Structure, StructureChoice, min_samples,
 };
-use crate::diagnose::residual;
 use crate::diagnose::search::decision;
 pub use crate::diagnose::search::diagnosis::*;
+use crate::diagnose::search::presence;
 pub use crate::diagnose::search::round::usable_lags;
 use crate::diagnose::search::round::{Current, find};
 use crate::plant::{MAX_DELAY, MAX_ORDER};
@@ -109,6 +109,9 @@ pub fn diagnose_with_progress(
     progress: &(dyn Fn(&str) + Sync),
 ) -> Result<Diagnosis, DiagnoseError> {
     check_record(u, y, cfg)?;
+    let op = OperatingPoint::of(u, y, structure::fit_len(u.len(), cfg.fit_fraction));
+    let (uc, yc) = (op.deviations(u, op.u), op.deviations(y, op.y));
+    let (u, y) = (&uc[..], &yc[..]);
     let mut problem = problem_of(u, y, cfg, progress)?;
     let (initial, choice) = structure::choose(&mut problem, cfg.structure, cfg.max_delay);
     let s = choice.chosen;
@@ -119,6 +122,14 @@ pub fn diagnose_with_progress(
         fit_plain(&problem, s, cfg.restarts, cfg.seed, &linear).ok_or(DiagnoseError::NoFit)?;
     let mut d = rounds_from(&mut problem, cfg, base, &linear, choice, &initial)?;
     extend(&problem, cfg, &mut d);
+    d.backlash = presence::assess(&problem, d.final_model());
+    let explained = {
+        let last = d.steps().last().map_or(&d.base_sim.y, |c| &c.output);
+        Explained::of(u, y, last, d.n_fit)
+    };
+    d.explained = explained;
+    d.operating_point = op;
+    d.restore_outputs();
     Ok(d)
 }
 
@@ -337,59 +348,6 @@ fn linear_fit(p: &Problem, linear: &(BaseModel, f64)) -> LinearFit {
     }
 }
 
-/// The standard error of the sum of parameters `j` and `k` from their covariance matrix:
-/// `sqrt(var_j + var_k + 2 cov_jk)` (0 where rounding makes the variance negative).
-fn sum_std_error(cov: &nalgebra::DMatrix<f64>, j: usize, k: usize) -> f64 {
-    (cov[(j, j)] + cov[(k, k)] + 2.0 * cov[(j, k)])
-        .max(0.0)
-        .sqrt()
-}
-
-/// The plain model's play with its standard error, and the verdict against the linear model.
-fn backlash_support(
-    p: &Problem,
-    base: &BaseModel,
-    base_heldout: f64,
-    linear: &LinearFit,
-) -> BacklashSupport {
-    let cov = p.plain_covariance(base);
-    let i = base.na + base.nb + 1;
-    let se = |j: usize| cov.as_ref().map(|c| c[(j, j)].max(0.0).sqrt());
-    let play = base.c1 + base.c2;
-    let play_se = cov.as_ref().map(|c| sum_std_error(c, i + 1, i + 2));
-    let significant = play_se.is_some_and(|s| play > residual::Z95 * s);
-    let better = base_heldout < linear.heldout_rmse;
-    let play_text = match play_se {
-        Some(s) => format!("play c1 + c2 = {play:.4e} +/- {s:.2e} (standard error)"),
-        None => format!(
-            "play c1 + c2 = {play:.4e} (no standard error: the record does not determine the gaps)"
-        ),
-    };
-    let errors = format!(
-        "held-out error {base_heldout:.4e} with backlash against {:.4e} for the linear model",
-        linear.heldout_rmse
-    );
-    let verdict = match (significant, better) {
-        (true, true) => format!("backlash is supported by the data: {play_text}, {errors}"),
-        (false, _) => format!(
-            "backlash is not supported by the data: the {play_text} is not significantly above zero ({errors})"
-        ),
-        (true, false) => format!(
-            "backlash is not supported by the data: the {play_text} is significant on the fit part but the \
-             {errors} (a straight line predicts as well)"
-        ),
-    };
-    BacklashSupport {
-        play,
-        play_se,
-        c1_se: se(i + 1),
-        c2_se: se(i + 2),
-        m2_se: se(i),
-        supported: significant && better,
-        verdict,
-    }
-}
-
 fn diagnose_from(
     p: &mut Problem,
     cfg: &DiagnoseConfig,
@@ -411,7 +369,8 @@ fn diagnose_from(
     let base_bic = bic(base_cost, n_fit, base_k);
     let base_heldout_rmse = rms(e[n_fit..].iter().copied());
     let linear = linear_fit(p, linear);
-    let backlash = backlash_support(p, &base.base, base_heldout_rmse, &linear);
+    let backlash =
+        BacklashSupport::undetermined("not judged yet: the verdict is taken on the final model");
 
     let found = find(
         p,
@@ -449,6 +408,8 @@ fn diagnose_from(
         base_rounds: rounds,
         later: Vec::new(),
         stopped: String::new(),
+        operating_point: OperatingPoint::default(),
+        explained: Explained::default(),
     })
 }
 

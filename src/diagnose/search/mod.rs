@@ -5,4 +5,5 @@
 pub mod decision;
 pub mod diagnosis;
 pub mod engine;
+pub mod presence;
 pub mod round;

@@ -1,0 +1,670 @@
+//! The verdict on play: `present`, `absent` (with the play the record rules out) or `undetermined` (with the
+//! experiment that would decide), judged on the final model with the evidence for and against in words.
+//!
+//! - **Present** needs all of: the final model with its gap beats, on the held-out part, the same model with
+//!   the gap pinned at zero (the same borders as one memoryless curve, paper 003's zero-gap case) and that
+//!   zero-gap model with each play-free effect of the catalogue that imitates play added (a curve, friction,
+//!   direction-dependent dynamics, a dead zone, clipping), each by at least [`MIN_GAIN`] and significantly;
+//!   the play is above zero by [`residual::Z95`] standard errors that hold with coloured residuals (a
+//!   Newey-West sandwich); it is narrower than [`MAX_PLAY_SHARE`] of the travel of the linear block's
+//!   output; at least [`MIN_REVERSALS`] reversals of that output cross it on the fit part and
+//!   [`MIN_HELDOUT_REVERSALS`] on the held-out part; the two halves of the fit part give plays that agree.
+//! - **Absent** needs: no gain from the gap, the play not significantly above zero, a bound (the largest
+//!   play the record does not rule out at 95%, checked on the play's profile) narrower than
+//!   [`MAX_BOUND_SHARE`] of the travel, and at least [`MIN_ABSENT_REVERSALS`] reversals crossing it.
+//! - Anything else is **undetermined**, and so is every impossible estimate (a negative gap, a play wider
+//!   than the travel), said as what it is.
+
+use serde::Serialize;
+
+use crate::diagnose::effects::{CATALOGUE, Effect};
+use crate::diagnose::fit::model::{EffectModel, Objective, Rest, Simulation};
+use crate::diagnose::fit::problem::Problem;
+use crate::diagnose::fit::starts::StartContext;
+use crate::diagnose::residual::{self, statistics::diebold_mariano};
+use crate::stats::{quantile, rms};
+
+/// The least relative fall of the held-out error that the gap must bring against every play-free model.
+pub const MIN_GAIN: f64 = 0.02;
+/// The one-sided z of that fall (Diebold-Mariano, 5%).
+pub const MIN_Z: f64 = 1.645;
+/// Reversals of the linear block's output that cross the play, on the fit part, for `present` (a few tens:
+/// a handful is no evidence).
+pub const MIN_REVERSALS: usize = 20;
+/// ... and on the held-out part, which judges the gain.
+pub const MIN_HELDOUT_REVERSALS: usize = 5;
+/// Reversals crossing the bound, on the fit part, for `absent`.
+pub const MIN_ABSENT_REVERSALS: usize = 20;
+/// The widest play, as a share of the travel (1st to 99th percentile of the linear block's output on the
+/// fit part), that a record can show: a wider one is not a play.
+pub const MAX_PLAY_SHARE: f64 = 0.5;
+/// The widest bound, as a share of the travel, that says something.
+pub const MAX_BOUND_SHARE: f64 = 0.25;
+/// The halves agree when their plays differ by less than their combined 95% error plus this share of the
+/// larger (a model that misses something moves a little between halves; a play that is half noise moves a
+/// lot).
+pub const HALF_TOLERANCE: f64 = 0.25;
+/// The 95% point of chi-square with one degree of freedom: the profile's threshold.
+pub const CHI2_95: f64 = 3.84;
+/// How the standard errors are computed, as the answer names it.
+pub const SE_METHOD: &str = "Newey-West sandwich of the fit-part simulation errors (Bartlett window out to the \
+    residual's first white lag): holds when the residuals are autocorrelated, where the information matrix alone \
+    claims too much";
+
+/// The three answers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Presence {
+    Present,
+    Absent,
+    Undetermined,
+}
+
+/// A play-free model the gap was compared with.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlayFree {
+    /// `zero-gap` (the same borders without a gap) or `zero-gap + <effect>`.
+    pub model: String,
+    pub heldout_rmse: f64,
+    /// Diebold-Mariano z of the model with the gap against it (positive: the gap predicts better).
+    pub z: f64,
+}
+
+/// The verdict on play with its evidence (the JSON's `backlash`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BacklashSupport {
+    pub presence: Presence,
+    /// True exactly when `presence` is `present`.
+    pub supported: bool,
+    /// The evidence for and against, in words and numbers.
+    pub reasons: Vec<String>,
+    /// The final model's play c1 + c2, in the linear block's output units.
+    pub play: f64,
+    /// Its standard error (see `se_method`); `None` where the record does not determine the gaps.
+    pub play_se: Option<f64>,
+    /// The standard error the information matrix alone gives (right only for white residuals).
+    pub play_se_white: Option<f64>,
+    pub se_method: &'static str,
+    /// The play the record rules out at 95% (`absent` only).
+    pub play_bound: Option<f64>,
+    /// The play in the input's units (through the linear block's static gain) and in the output's (times
+    /// the borders' mean slope); `None` for an impossible estimate.
+    pub play_input_units: Option<f64>,
+    pub play_output_units: Option<f64>,
+    /// The final model's held-out error and the play-free models'.
+    pub heldout_rmse: f64,
+    pub play_free: Vec<PlayFree>,
+    /// Reversals of the linear block's output that cross the play (fit part, held-out part).
+    pub reversals: [usize; 2],
+    /// The travel of the linear block's output (1st to 99th percentile, fit part).
+    pub travel: f64,
+    /// The plays of the two halves of the fit part, when they were compared.
+    pub halves: Option<[f64; 2]>,
+    /// For `undetermined`: the experiment that would decide.
+    pub experiment: Option<String>,
+    /// The answer in one sentence.
+    pub verdict: String,
+}
+
+/// The final model's simulation with what the verdict reads off it.
+struct Reading {
+    model: EffectModel,
+    sim: Simulation,
+    heldout: Vec<f64>,
+    play: f64,
+    se: Option<f64>,
+    se_white: Option<f64>,
+    travel: f64,
+}
+
+/// The verdict on play for the final model `last` of a diagnosis on problem `p`.
+pub(crate) fn assess(p: &Problem, last: &EffectModel) -> BacklashSupport {
+    (p.progress)("judging the play: the same model without a gap, and its play-free alternatives");
+    let Some(r) = read(p, last) else {
+        return unreadable();
+    };
+    let mut reasons = Vec::new();
+    let impossible = impossible(&r, &mut reasons);
+    let twin = play_free(p, &r, &r.model, "zero-gap");
+    let gains = twin.iter().all(|t| beats(&r, t));
+    let mut play_free = twin.into_iter().collect::<Vec<_>>();
+    if gains && !impossible {
+        play_free.extend(imitators(p, &r));
+    }
+    let reversals = [
+        crossing_reversals(&r.sim.x[..p.n_fit], r.play.abs()),
+        crossing_reversals(&r.sim.x[p.n_fit..], r.play.abs()),
+    ];
+    let cx = Context {
+        p,
+        r: &r,
+        play_free: &play_free,
+        reversals,
+    };
+    let mut out = cx.decide(impossible, &mut reasons);
+    out.reasons = reasons;
+    out
+}
+
+/// The final model's deterministic part simulated, its play and the play's standard errors.
+fn read(p: &Problem, last: &EffectModel) -> Option<Reading> {
+    let model = last.deterministic();
+    let sim = model.simulate(p.u, p.rest, p.u.len(), p.limit)?;
+    let heldout = errors(p, &sim);
+    let var = p.combination_variance(&model, &model.play_weights(p.time_scale));
+    let x_fit = &sim.x[..p.n_fit];
+    let travel = quantile(x_fit, 0.99).unwrap_or(0.0) - quantile(x_fit, 0.01).unwrap_or(0.0);
+    Some(Reading {
+        play: model.play(),
+        se: var.map(|v| v.sandwich.sqrt()),
+        se_white: var.map(|v| v.classical.sqrt()),
+        model,
+        sim,
+        heldout,
+        travel,
+    })
+}
+
+/// Held-out errors y - y_model of a simulation.
+fn errors(p: &Problem, sim: &Simulation) -> Vec<f64> {
+    p.y[p.n_fit..]
+        .iter()
+        .zip(&sim.y[p.n_fit..])
+        .map(|(a, b)| a - b)
+        .collect()
+}
+
+fn unreadable() -> BacklashSupport {
+    BacklashSupport::undetermined(
+        "the final model cannot be simulated over the record, so nothing can be said about play",
+    )
+}
+
+impl BacklashSupport {
+    /// The verdict with its size and interval in one line: the first thing the text output, the report and
+    /// a user read.
+    pub fn headline(&self) -> String {
+        let interval = |p: f64, se: f64| {
+            format!(
+                "{} +/- {} in the linear block's units (95% interval {} to {})",
+                g(p),
+                g(se),
+                g(p - residual::Z95 * se),
+                g(p + residual::Z95 * se)
+            )
+        };
+        let input = self.play_input_units.map_or(String::new(), |v| {
+            format!(", about {} in the input's units", g(v))
+        });
+        match (self.presence, self.play_se) {
+            (Presence::Present, Some(se)) => {
+                format!("play: present, {}{input}", interval(self.play, se))
+            }
+            (Presence::Absent, _) => format!(
+                "play: absent, none above {} in the linear block's units (95%)",
+                g(self.play_bound.unwrap_or(f64::NAN))
+            ),
+            _ => format!(
+                "play: undetermined ({}){}",
+                self.reasons
+                    .iter()
+                    .find(|r| r.contains("not ") || r.contains("negative") || r.contains("wider"))
+                    .or(self.reasons.first())
+                    .map_or("no evidence", |r| r.as_str()),
+                self.experiment
+                    .as_ref()
+                    .map_or(String::new(), |e| format!("; would decide: {e}"))
+            ),
+        }
+    }
+
+    /// `undetermined` for the reason `why`, with no numbers.
+    pub(crate) fn undetermined(why: &str) -> Self {
+        Self {
+            presence: Presence::Undetermined,
+            supported: false,
+            reasons: vec![why.into()],
+            play: f64::NAN,
+            play_se: None,
+            play_se_white: None,
+            se_method: SE_METHOD,
+            play_bound: None,
+            play_input_units: None,
+            play_output_units: None,
+            heldout_rmse: f64::NAN,
+            play_free: Vec::new(),
+            reversals: [0, 0],
+            travel: 0.0,
+            halves: None,
+            experiment: None,
+            verdict: why.into(),
+        }
+    }
+}
+
+/// Estimates that cannot be a play, said as what they are; true when there is one.
+fn impossible(r: &Reading, reasons: &mut Vec<String>) -> bool {
+    let mut found = false;
+    if let Some(se) = r.se
+        && r.play < -residual::Z95 * se
+    {
+        reasons.push(format!(
+            "the fitted gap is negative ({} +/- {}, {:.1} standard errors below zero): after a reversal the \
+             output turns at once or leads instead of holding, which no play does; the model class is wrong \
+             for this record (a lead, a fold or a drift looks like this)",
+            g(r.play),
+            g(se),
+            -r.play / se
+        ));
+        found = true;
+    }
+    if r.play > MAX_PLAY_SHARE * r.travel {
+        reasons.push(format!(
+            "the fitted play {} is wider than half the travel of the linear block's output ({}): a play that \
+             wide would hold the output for most of the record; the model uses the gap for something else",
+            g(r.play),
+            g(r.travel)
+        ));
+        found = true;
+    }
+    let (m1, m2) = (r.model.base.m1, r.model.base.m2);
+    if !(m2 > 0.2 * m1 && m2 < 5.0 * m1) {
+        reasons.push(format!(
+            "the borders' slopes differ by more than five times (m1 = {}, m2 = {}): no mechanical play has \
+             such borders",
+            g(m1),
+            g(m2)
+        ));
+        found = true;
+    }
+    found
+}
+
+/// Whether the model with the gap beats the play-free model `t` on the held-out part.
+fn beats(r: &Reading, t: &PlayFree) -> bool {
+    let rmse = rms(r.heldout.iter().copied());
+    rmse < (1.0 - MIN_GAIN) * t.heldout_rmse && t.z >= MIN_Z
+}
+
+/// The zero-gap model of `start`'s structure fitted from it, compared with the final model on the held-out
+/// part; `None` when it cannot be fitted.
+fn play_free(p: &Problem, r: &Reading, start: &EffectModel, name: &str) -> Option<PlayFree> {
+    let (moved, pins) = start.zero_gap(p.time_scale);
+    let (m, _) = p.fit_pinned(&moved, &pins, std::slice::from_ref(&moved))?;
+    let sim = m.simulate(p.u, p.rest, p.u.len(), p.limit)?;
+    let e = errors(p, &sim);
+    Some(PlayFree {
+        model: name.into(),
+        heldout_rmse: rms(e.iter().copied()),
+        z: diebold_mariano(&e, &r.heldout),
+    })
+}
+
+/// The zero-gap model with each play-free effect of the catalogue that imitates play added (those the
+/// final model lacks and can take), fitted from the effect's own starts.
+fn imitators(p: &Problem, r: &Reading) -> Vec<PlayFree> {
+    use rayon::prelude::*;
+    let residual: Vec<f64> = p.y[..p.n_fit]
+        .iter()
+        .zip(&r.sim.y)
+        .map(|(a, b)| a - b)
+        .collect();
+    let y_fit = &p.y[..p.n_fit];
+    let clip = y_fit
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(*v), hi.max(*v))
+        });
+    let no_mrgia = |_: usize, _: usize, _: usize| None;
+    let cx = StartContext {
+        current: &r.model,
+        u: &p.u[..p.n_fit],
+        y: y_fit,
+        residual: &residual,
+        y_scale: p.y_scale,
+        omega: 0.0,
+        lattice: None,
+        clip,
+        mrgia: &no_mrgia,
+    };
+    let effects: Vec<&'static dyn Effect> = CATALOGUE
+        .iter()
+        .copied()
+        .filter(|e| e.imitates_play() && r.model.can_add(e.id()))
+        .collect();
+    effects
+        .par_iter()
+        .filter_map(|e| {
+            let plan = e.plan(&cx)?;
+            plan.alternatives
+                .iter()
+                .filter(|alt| alt.template.deterministic() == alt.template)
+                .filter_map(|alt| {
+                    let start = alt.starts.first()?;
+                    play_free(p, r, start, &format!("zero-gap + {}", e.id()))
+                })
+                .min_by(|a, b| a.heldout_rmse.total_cmp(&b.heldout_rmse))
+        })
+        .collect()
+}
+
+/// Reversals of `x` whose excursion afterwards exceeds `h`: the turning points of the zigzag with threshold
+/// `h` (a reversal is counted once `x` has moved `h` back from its extreme). `h` of 0 or less counts none.
+pub fn crossing_reversals(x: &[f64], h: f64) -> usize {
+    if h.is_nan() || h <= 0.0 || x.is_empty() {
+        return 0;
+    }
+    let (mut lo, mut hi) = (x[0], x[0]);
+    let mut dir = 0i8;
+    let mut count = 0;
+    for &v in x {
+        match dir {
+            1 if v > hi => hi = v,
+            1 if hi - v >= h => (count, dir, lo) = (count + 1, -1, v),
+            -1 if v < lo => lo = v,
+            -1 if v - lo >= h => (count, dir, hi) = (count + 1, 1, v),
+            0 => {
+                (lo, hi) = (lo.min(v), hi.max(v));
+                if v - lo >= h {
+                    (dir, hi) = (1, v);
+                } else if hi - v >= h {
+                    (dir, lo) = (-1, v);
+                }
+            }
+            _ => {}
+        }
+    }
+    count
+}
+
+/// Everything the decision reads.
+struct Context<'a, 'p> {
+    p: &'a Problem<'p>,
+    r: &'a Reading,
+    play_free: &'a [PlayFree],
+    reversals: [usize; 2],
+}
+
+/// A number in a sentence: four decimals, or four significant digits in scientific form where those would
+/// hide it.
+fn g(v: f64) -> String {
+    if v == 0.0 || (0.01..1e5).contains(&v.abs()) {
+        format!("{v:.4}")
+    } else {
+        format!("{v:.3e}")
+    }
+}
+
+/// The first input level's rest rule for a slice starting at sample `k` of `p`.
+fn rest_at(p: &Problem, k: usize) -> Rest {
+    if p.rest == Rest::ZERO {
+        Rest::ZERO
+    } else {
+        Rest(p.u[k])
+    }
+}
+
+impl Context<'_, '_> {
+    /// The three answers' conditions; every condition checked says why in `reasons` (the halves are
+    /// refitted only where everything else says present).
+    fn decide(&self, impossible: bool, reasons: &mut Vec<String>) -> BacklashSupport {
+        let r = self.r;
+        self.say_gain(reasons);
+        let gains = !self.play_free.is_empty() && self.play_free.iter().all(|t| beats(r, t));
+        let significant = self.significant(reasons);
+        let crossed = self.crossed(reasons);
+        let mut halves = None;
+        let present = !impossible && significant && gains && crossed && {
+            halves = self.halves();
+            self.halves_agree(halves, reasons)
+        };
+        if present {
+            return self.answer(Presence::Present, None, halves);
+        }
+        let bound =
+            (!impossible && !gains && !significant && !self.friction_reads_as_play(reasons))
+                .then(|| self.bound(reasons))
+                .flatten();
+        match bound {
+            Some(b) => self.answer(Presence::Absent, Some(b), halves),
+            None => self.answer(Presence::Undetermined, None, halves),
+        }
+    }
+
+    /// A friction element in the final model is itself a play acting on the force (an elasto-plastic
+    /// element F = k (p - z) holds z within a play of width (F+ + F-) / k of p): the record cannot rule out
+    /// play then, whatever the gap says; in words.
+    fn friction_reads_as_play(&self, reasons: &mut Vec<String>) -> bool {
+        let Some(f) = self.r.model.effects().friction else {
+            return false;
+        };
+        reasons.push(format!(
+            "the final model's friction element is itself a play acting on the output (slip levels {} and \
+             -{}: a loop of width {} in its spring's units): the record cannot tell that friction from play, \
+             so no play is not an answer here",
+            g(f.f_plus),
+            g(f.f_minus),
+            g((f.f_plus + f.f_minus) / f.k_e)
+        ));
+        true
+    }
+
+    /// Whether the play is significantly above zero, in words.
+    fn significant(&self, reasons: &mut Vec<String>) -> bool {
+        let r = self.r;
+        let Some(se) = r.se else {
+            reasons.push("the record does not determine the gaps (no standard error)".into());
+            return false;
+        };
+        let yes = r.play > residual::Z95 * se;
+        reasons.push(format!(
+            "the play {} +/- {} is {}significantly above zero ({:.1} standard errors; the standard error \
+             assuming white residuals would be {})",
+            g(r.play),
+            g(se),
+            if yes { "" } else { "not " },
+            r.play / se,
+            r.se_white.map_or("unknown".into(), g)
+        ));
+        yes
+    }
+
+    /// The held-out comparison with every play-free model, in words.
+    fn say_gain(&self, reasons: &mut Vec<String>) {
+        let rmse = rms(self.r.heldout.iter().copied());
+        for t in self.play_free {
+            let verb = if beats(self.r, t) {
+                "beats"
+            } else {
+                "does not beat"
+            };
+            reasons.push(format!(
+                "with the gap the held-out error is {} and {verb} the {} model's {} ({:+.1}%, \
+                 Diebold-Mariano z {:.2}; at least {:.0}% and z {MIN_Z} are needed)",
+                g(rmse),
+                t.model,
+                g(t.heldout_rmse),
+                100.0 * (rmse / t.heldout_rmse - 1.0),
+                t.z,
+                100.0 * MIN_GAIN
+            ));
+        }
+        if self.play_free.is_empty() {
+            reasons.push(
+                "the zero-gap model could not be fitted, so the gap was compared with nothing"
+                    .into(),
+            );
+        }
+    }
+
+    /// Enough reversals cross the play, on both parts.
+    fn crossed(&self, reasons: &mut Vec<String>) -> bool {
+        let [fit, held] = self.reversals;
+        let ok = fit >= MIN_REVERSALS && held >= MIN_HELDOUT_REVERSALS;
+        reasons.push(format!(
+            "{fit} reversals of the linear block's output cross the play on the fit part and {held} on the \
+             held-out part (at least {MIN_REVERSALS} and {MIN_HELDOUT_REVERSALS} are needed)"
+        ));
+        ok
+    }
+
+    /// The plays of the fit part's two halves, each refitted from the final model, with their standard
+    /// errors (infinite where a half does not determine them).
+    fn halves(&self) -> Option<[(f64, f64); 2]> {
+        let p = self.p;
+        let h = p.n_fit / 2;
+        let first = p.shortened(h);
+        let mut second = Problem::new(&p.u[h..], &p.y[h..], p.n_fit - h, p.lm);
+        second.rest = rest_at(p, h);
+        second.x_scale = p.x_scale;
+        let m = &self.r.model;
+        let play = |q: &Problem| {
+            let (f, _) = q.fit(m, std::slice::from_ref(m), Objective::Simulation)?;
+            let var = q.combination_variance(&f, &f.play_weights(q.time_scale));
+            Some((f.play(), var.map_or(f64::INFINITY, |v| v.sandwich.sqrt())))
+        };
+        Some([play(&first)?, play(&second)?])
+    }
+
+    /// Whether the halves' plays agree (see [`HALF_TOLERANCE`]), in words.
+    fn halves_agree(&self, halves: Option<[(f64, f64); 2]>, reasons: &mut Vec<String>) -> bool {
+        let Some([(a, sa), (b, sb)]) = halves else {
+            reasons.push("the halves of the fit part could not be fitted on their own".into());
+            return false;
+        };
+        let allowed = residual::Z95 * sa.hypot(sb) + HALF_TOLERANCE * a.abs().max(b.abs());
+        let agree = (a - b).abs() <= allowed;
+        reasons.push(format!(
+            "the two halves of the fit part give plays {} +/- {} and {} +/- {}: they {} (a difference up to {} \
+             is allowed)",
+            g(a),
+            g(sa),
+            g(b),
+            g(sb),
+            if agree { "agree" } else { "disagree" },
+            g(allowed)
+        ));
+        agree
+    }
+
+    /// The play the record rules out at 95%: the Wald bound `max(play, 0) + 1.96 se`, checked on the profile
+    /// (the model refitted with the play held there must cost at least [`CHI2_95`] more, in units of the
+    /// residual variance times the sandwich's inflation), widened up to three times where it is not; `None`
+    /// (with the reason) when no bound holds, is too wide or is crossed too rarely.
+    fn bound(&self, reasons: &mut Vec<String>) -> Option<f64> {
+        let (p, r) = (self.p, self.r);
+        let se = r.se?;
+        let white = r.se_white.filter(|w| *w > 0.0)?;
+        let best = p.cost(&r.model, Objective::Simulation)?;
+        let unit = best / p.n_fit as f64 * (se / white).powi(2).max(1.0);
+        let mut bound = r.play.max(0.0) + residual::Z95 * se;
+        let held = |b: f64| {
+            let pins = r.model.play_pins(b, p.time_scale);
+            let mut start = r.model.clone();
+            start.base.c2 = b - start.base.c1;
+            p.fit_pinned(&r.model, &pins, &[start]).map(|(_, c)| c)
+        };
+        let confirmed = (0..3).find_map(|_| {
+            let rise = (held(bound)? - best) / unit;
+            if rise >= CHI2_95 {
+                return Some(bound);
+            }
+            bound *= 1.5;
+            None
+        });
+        let Some(bound) = confirmed else {
+            reasons
+                .push("no play the record rules out could be found on the play's profile".into());
+            return None;
+        };
+        let crossing = crossing_reversals(&r.sim.x[..p.n_fit], bound);
+        let narrow = bound <= MAX_BOUND_SHARE * r.travel;
+        reasons.push(format!(
+            "the record rules out a play above {} at 95% (profile checked), {}% of the travel {}; {crossing} \
+             reversals cross that width (at least {MIN_ABSENT_REVERSALS} and at most {:.0}% of the travel are \
+             needed to say no play)",
+            g(bound),
+            (100.0 * bound / r.travel).round(),
+            g(r.travel),
+            100.0 * MAX_BOUND_SHARE
+        ));
+        (narrow && crossing >= MIN_ABSENT_REVERSALS).then_some(bound)
+    }
+
+    /// The answer with its numbers, its sentence and, for `undetermined`, the experiment.
+    fn answer(
+        &self,
+        presence: Presence,
+        bound: Option<f64>,
+        halves: Option<[(f64, f64); 2]>,
+    ) -> BacklashSupport {
+        let r = self.r;
+        let possible = r.play >= 0.0 && r.play <= MAX_PLAY_SHARE * r.travel;
+        let gain = r.model.base.static_gain().abs();
+        let slope = 0.5 * (r.model.base.m1 + r.model.base.m2);
+        let play_input_units = (possible && gain > 0.0).then(|| r.play / gain);
+        let experiment = (presence == Presence::Undetermined).then(|| self.experiment(gain));
+        BacklashSupport {
+            presence,
+            supported: presence == Presence::Present,
+            reasons: Vec::new(),
+            play: r.play,
+            play_se: r.se,
+            play_se_white: r.se_white,
+            se_method: SE_METHOD,
+            play_bound: bound,
+            play_input_units,
+            play_output_units: possible.then(|| r.play * slope),
+            heldout_rmse: rms(r.heldout.iter().copied()),
+            play_free: self.play_free.to_vec(),
+            reversals: self.reversals,
+            travel: r.travel,
+            halves: halves.map(|[a, b]| [a.0, b.0]),
+            verdict: self.sentence(presence, bound, play_input_units),
+            experiment,
+        }
+    }
+
+    /// The answer in one sentence.
+    fn sentence(&self, presence: Presence, bound: Option<f64>, input: Option<f64>) -> String {
+        let r = self.r;
+        let se = r.se.map_or(String::new(), |s| format!(" +/- {}", g(s)));
+        let in_input = input.map_or(String::new(), |v| {
+            format!(" (about {} in the input's units)", g(v))
+        });
+        match presence {
+            Presence::Present => format!(
+                "play is present: {}{se} in the linear block's units{in_input}; the model with the gap beats \
+                 every play-free model on the held-out part",
+                g(r.play)
+            ),
+            Presence::Absent => format!(
+                "no play: the record rules out a play above {} (95%) in the linear block's units, and the gap \
+                 brings nothing on the held-out part",
+                g(bound.unwrap_or(f64::NAN))
+            ),
+            Presence::Undetermined => {
+                "the record cannot tell whether there is play (the reasons say why and what would decide)".into()
+            }
+        }
+    }
+
+    /// The experiment that would decide, in the input's units where the static gain allows.
+    fn experiment(&self, gain: f64) -> String {
+        let r = self.r;
+        let suspected = r.play.abs().max(r.se.unwrap_or(0.0)).max(0.02 * r.travel);
+        let excursion = 5.0 * suspected;
+        let in_input = if gain > 0.0 {
+            format!(" (about {} of the input)", g(excursion / gain))
+        } else {
+            String::new()
+        };
+        format!(
+            "a slow triangle or sine of the input at two amplitudes, each with at least {MIN_ABSENT_REVERSALS} \
+             reversals whose excursion in the linear block's output exceeds {}{in_input}, slow enough for the \
+             linear block to settle between reversals: a play holds the output over the same width at both \
+             amplitudes and rates, a dynamic lag does not",
+            g(excursion)
+        )
+    }
+}
