@@ -10,6 +10,10 @@ step() { printf '== [%dm%02ds] %s\n' $((SECONDS / 60)) $((SECONDS % 60)) "$*"; }
 step "disk: $(df -h --output=avail . | tail -1 | tr -d ' ') free here"
 step "setup: system packages"
 bash scripts/setup.sh --system
+# The measured records the tests read (data/*/README.md): copied from BACKLASH_FETCH_FROM when set (.ci/run sets
+# it), otherwise downloaded from their sources at pinned commits; every sha256 checked (quick when in place).
+step "the measured records: scripts/fetch_data.py${BACKLASH_FETCH_FROM:+ --from $BACKLASH_FETCH_FROM}"
+python3 scripts/fetch_data.py ${BACKLASH_FETCH_FROM:+--from "$BACKLASH_FETCH_FROM"}
 # The Python environment (pip) is made beside formatting, lints and docs, which do not use it; the release
 # build waits for it (zig links the FMUs' portable binary).
 mkdir -p target
