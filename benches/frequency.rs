@@ -1,11 +1,9 @@
-//! Paper 003 on the measured damper (data/brfd/char_0.5Hz_36lb_1in.csv, 14,337 samples) against the
+//! Paper 003 on the measured damper (brfd/char_0.5Hz_36lb_1in.csv of data/, 14,337 samples) against the
 //! output-error fit of the same record: the ratio to watch is `identify frequency` (window, every degree,
 //! verdict) over `identify oe` (the paper 000 structure declared, default starts), both as the library runs
 //! them for the command line.
 //!
 //! `cargo bench --bench frequency`
-
-use std::path::Path;
 
 use backlash::identify::frequency::SineRecord;
 use backlash::identify::frequency::analysis::{AnalysisOptions, analyse};
@@ -14,10 +12,12 @@ use backlash::io::Table;
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 
+#[path = "../tests/records.rs"]
+mod records;
+
 fn frequency_against_oe(c: &mut Criterion) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/brfd/char_0.5Hz_36lb_1in.csv");
-    let table =
-        Table::read(&path, &["t", "u", "y"]).expect("the damper record is in the repository");
+    let path = records::record("brfd/char_0.5Hz_36lb_1in.csv");
+    let table = Table::read(&path, &["t", "u", "y"]).expect("the damper record reads");
     let col = |name| table.column(name).expect("read above");
     let (t, u, y) = (col("t"), col("u"), col("y"));
     let rec = SineRecord {

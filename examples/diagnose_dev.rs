@@ -5,9 +5,10 @@
 //! ```sh
 //! # simulated records (seeds A..B, every effect and clean records unless --effects names some)
 //! cargo run --release --example diagnose_dev -- sweep --seeds 0..5 --effects clean,friction --n 3000
-//! # a measured record, decimated, with one or more declared structures (na,nb,delay;...)
-//! cargo run --release --example diagnose_dev -- file data/brfd/char_0.5Hz_36lb_1in.csv --decimate 16 \
-//!     --orders '0,1,1' --validate data/brfd/KocaeliDBE_36lb.csv
+//! # a measured record, decimated, with one or more declared structures (na,nb,delay;...); a record of
+//! # data/ by its name there (tests/records.rs finds it), or any CSV file by its path
+//! cargo run --release --example diagnose_dev -- file brfd/char_0.5Hz_36lb_1in.csv --decimate 16 \
+//!     --orders '0,1,1' --validate brfd/KocaeliDBE_36lb.csv
 //! ```
 
 use std::ops::Range;
@@ -22,6 +23,13 @@ use backlash::diagnose::effects::EffectId;
 use backlash::diagnose::engine::{DiagnoseConfig, Diagnosis, diagnose};
 use backlash::diagnose::record::decimate;
 use backlash::io::Table;
+
+#[path = "../tests/records.rs"]
+#[allow(
+    dead_code,
+    reason = "this tool uses find_record only, not the tests' panicking record"
+)]
+mod records;
 
 #[derive(Parser)]
 struct Cli {
@@ -48,6 +56,7 @@ enum Command {
     },
     /// Diagnose a measured record (columns t, u, y) with declared structures.
     File {
+        /// A CSV file, or a measured record by its name in data/ (e.g. brfd/char_0.5Hz_36lb_1in.csv).
         path: PathBuf,
         /// Keep every FACTOR-th sample after averaging.
         #[arg(long, default_value_t = 16)]
@@ -55,7 +64,7 @@ enum Command {
         /// Declared structures `na,nb,delay`, several separated by `;`.
         #[arg(long, default_value = "0,1,1")]
         orders: String,
-        /// Records (columns t, u, y) to run the fitted models on without refitting.
+        /// Records (columns t, u, y; files or names in data/) to run the fitted models on without refitting.
         #[arg(long, value_delimiter = ',')]
         validate: Vec<PathBuf>,
         /// Print only the summary and the validations, not the tests and candidates.
@@ -166,8 +175,17 @@ fn sweep(seeds: Range<u64>, effects: &[Option<EffectId>], n: usize, verbose: boo
     Ok(())
 }
 
+/// A file given by its path, or else a measured record by its name in data/.
+fn locate(path: &Path) -> Result<PathBuf> {
+    if path.is_file() {
+        return Ok(path.to_path_buf());
+    }
+    records::find_record(&path.to_string_lossy()).map_err(anyhow::Error::msg)
+}
+
 /// The columns u and y of a record, decimated.
 fn read_decimated(path: &Path, factor: usize) -> Result<Vec<Vec<f64>>> {
+    let path = &locate(path)?;
     let table = Table::read(path, &["t", "u", "y"])?;
     let column = |name| {
         table

@@ -2,9 +2,12 @@
 """Convert the public measured records in data/ from their published form to `time,u,y` CSV files.
 
 The sources are not part of this repository; each data/<name>/README.md names the repository, commit and
-path the input came from and its licence. Give the files of those commits to this script to rebuild the CSVs
-byte for byte:
+path the input came from and its licence. `python3 scripts/fetch_data.py` downloads them and calls this
+script's functions; by hand, give the files of those commits to this script to rebuild the CSVs byte for byte:
 
+    python scripts/convert_records.py brfd "SRC/data/dataset-2/earthquake profiles/KocaeliDBE.json" \
+        data/brfd/KocaeliDBE_36lb.csv
+    python scripts/convert_records.py emps SRC/examples/EMPS/data/DATA_EMPS.mat data/emps/emps.csv
     python scripts/convert_records.py servo SRC/logs/motor_telemetry_single.csv 5 data/servo/sts3215_hold.csv
     python scripts/convert_records.py servo SRC/logs/motor_telemetry_single_3250.csv 4 data/servo/sts3250_hold.csv
     python scripts/convert_records.py generator SRC/datasets/generator/x_cc.csv SRC/datasets/generator/y_cc.csv \
@@ -17,6 +20,9 @@ Only the standard library is used.
 
 import argparse
 import csv
+import json
+import struct
+import zlib
 from datetime import datetime
 
 # Block length of the generator record's mean decimation (the source's input holds each level for a multiple
@@ -92,6 +98,79 @@ def convert_tanks(source: str, part: str, out: str) -> int:
     return len(rows)
 
 
+def convert_brfd(source: str, out: str) -> int:
+    """A friction-damper test (dataset-2's JSON: "data" rows of time, displacement, friction force, ...): the
+    first three columns as t,u,y with 10 significant digits."""
+    with open(source) as f:
+        rows = json.load(f)["data"]
+    with open(out, "w", newline="") as f:
+        f.write("t,u,y\n")
+        for r in rows:
+            f.write(f"{r[0]:.10g},{r[1]:.10g},{r[2]:.10g}\n")
+    return len(rows)
+
+
+# MATLAB level-5 MAT-file element types (the MAT-File Format document): numeric types by code, with the
+# struct format of one value; 14 is a matrix, 15 a zlib-compressed element.
+MAT_NUMERIC = {1: "b", 2: "B", 3: "h", 4: "H", 5: "i", 6: "I", 7: "f", 9: "d", 12: "q", 13: "Q"}
+MAT_MATRIX, MAT_COMPRESSED = 14, 15
+
+
+def mat_elements(buf: bytes, pos: int = 0):
+    """(type, payload) of each data element in buf from pos, little-endian; a small element (its size in the
+    tag's upper half) carries its payload in the tag's second word."""
+    while pos + 8 <= len(buf):
+        kind, size = struct.unpack_from("<II", buf, pos)
+        if kind >> 16:
+            kind, size = kind & 0xFFFF, kind >> 16
+            yield kind, buf[pos + 4 : pos + 4 + size]
+            pos += 8
+            continue
+        yield kind, buf[pos + 8 : pos + 8 + size]
+        # A compressed element is not padded; every other one ends on a multiple of 8 bytes.
+        pos += 8 + (size if kind == MAT_COMPRESSED else (size + 7) // 8 * 8)
+
+
+def read_mat_vectors(path: str) -> dict[str, list[float]]:
+    """Every real numeric array of a MATLAB level-5 MAT-file (not v7.3) by its name, its values in column
+    order. Only the standard library: no scipy."""
+    with open(path, "rb") as f:
+        buf = f.read()
+    if buf[126:128] != b"IM":
+        raise SystemExit(f"{path}: not a little-endian MATLAB 5 MAT-file (v7.3 files are HDF5, not read here)")
+    arrays = {}
+    for kind, payload in mat_elements(buf, 128):
+        if kind == MAT_COMPRESSED:
+            kind, payload = next(mat_elements(zlib.decompress(payload)))
+        if kind != MAT_MATRIX:
+            continue
+        parts = list(mat_elements(payload))
+        if len(parts) < 4 or parts[3][0] not in MAT_NUMERIC:
+            continue  # a cell, struct, sparse, character or empty array: not a vector of numbers
+        name = parts[2][1].decode("ascii")
+        code, data = parts[3]
+        fmt = MAT_NUMERIC[code]
+        arrays[name] = [float(v) for v in struct.unpack(f"<{len(data) // struct.calcsize(fmt)}{fmt}", data)]
+    return arrays
+
+
+def convert_emps(source: str, out: str) -> int:
+    """The EMPS benchmark's estimation record (DATA_EMPS.mat): t, u = vir (the controller's force command),
+    y = qm (the measured motor position), 10 significant digits; the reference qg is dropped."""
+    arrays = read_mat_vectors(source)
+    missing = [k for k in ("t", "vir", "qm") if k not in arrays]
+    if missing:
+        raise SystemExit(f"{source}: no array {', '.join(missing)}")
+    t, u, y = arrays["t"], arrays["vir"], arrays["qm"]
+    if not len(t) == len(u) == len(y):
+        raise SystemExit(f"{source}: t, vir and qm have {len(t)}, {len(u)} and {len(y)} values")
+    with open(out, "w", newline="") as f:
+        f.write("t,u,y\n")
+        for row in zip(t, u, y):
+            f.write("{:.10g},{:.10g},{:.10g}\n".format(*row))
+    return len(t)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="record", required=True)
@@ -107,8 +186,18 @@ def main() -> None:
     t.add_argument("source")
     t.add_argument("part", choices=["Est", "Val"])
     t.add_argument("out")
+    b = sub.add_parser("brfd", help="a friction-damper test of dataset-2 (its JSON file)")
+    b.add_argument("source")
+    b.add_argument("out")
+    e = sub.add_parser("emps", help="the EMPS estimation record (DATA_EMPS.mat)")
+    e.add_argument("source")
+    e.add_argument("out")
     a = p.parse_args()
-    if a.record == "servo":
+    if a.record == "brfd":
+        n = convert_brfd(a.source, a.out)
+    elif a.record == "emps":
+        n = convert_emps(a.source, a.out)
+    elif a.record == "servo":
         n = convert_servo(a.source, a.motor, a.out)
     elif a.record == "tanks":
         n = convert_tanks(a.source, a.part, a.out)

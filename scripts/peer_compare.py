@@ -1,34 +1,44 @@
 #!/usr/bin/env python3
-"""Held-out free-run error of `backlash diagnose` beside two peers, on the measured records in data/.
+"""Held-out free-run error of `backlash diagnose` beside two peers as strong as a user's, on the nine measured
+records, and the ratchet that keeps `diagnose` from getting worse on them.
 
-Every model is judged the way `diagnose` judges its own: the record (after block-mean decimation, the same
-as `diagnose --decimate`) is split into the first 70% of samples (fit; round(0.7 N) samples) and the rest
-(held out). Each model is fitted on the fit part only, then simulated free-run over the whole record from
-rest (zero initial state: outputs and inputs before the first sample are 0, in the record's own units), so
-the held-out part starts from the state the fit part left. The score is the RMSE of that simulation on the
-held-out part.
+The records are found by scripts/data_records.py (data/, or BACKLASH_DATA); `python3 scripts/fetch_data.py`
+puts them there. A missing record is an error, never a skipped row.
 
-Peers:
-- ARX by least squares with a constant: y(k) = -sum a_i y(k-i) + sum b_j u(k-d-j) + c, na and nb in 0..4,
-  d in 1..3 (75 structures). The structure is chosen by the lowest free-run RMSE on the fit part (not BIC:
-  the score is a free-run error, so the choice uses the same kind of error, on the fit part only). A
-  structure whose A polynomial is unstable is not eligible.
-- Polynomial NARX (sysidentpy, FROLS, degree 2, BIC term selection) on standardised data (fit-part mean and
-  standard deviation), for the lags in NARX_LAGS. Each is simulated free-run from rest by this script (not by
-  sysidentpy's predict, which starts from measured outputs). Structures are ranked by fit-part free-run RMSE;
-  the best one whose free run over the whole record stays bounded (finite, within DIVERGED_FACTOR fit-part
-  standard deviations of the fit-part mean) is taken; diverged ones are counted in the table.
+Every model is judged the way `diagnose` judges its own: the record (after block-mean decimation, the same as
+`diagnose --decimate`) is split into the first 70% of samples (fit; round(0.7 N) samples) and the rest (held
+out); each model is fitted on the fit part only, simulated free-run over the whole record, and scored by the
+RMSE of that simulation on the held-out part, in the record's units.
 
-Then `backlash diagnose FILE --json` runs on the same record and decimation. It is first called without
---na/--nb/--delay (the tool chooses); if the program refuses that (an older CLI where they are required),
-it is called again with the record's fallback structure, and the table says so. Its wall time and peak
-resident memory (GNU time, see run_process) are recorded; a run longer than --timeout is stopped and
-reported as such.
+Peers (the recipe of issue 45): u and y standardised with the fit part's mean and standard deviation; every
+free run starts from the record's first sample (u and y held at their first values before it, as a user
+starting a simulation from the measured initial condition would);
+- ARX with an intercept by least squares: y(k) = -sum a_i y(k-i) + sum_{j=0..nb} b_j u(k-d-j) + c, na 1-4,
+  nb 1-4, delay d 1-3 (48 structures), fitted on the fit part's rows whose regressors are all measured;
+- polynomial NARX by sysidentpy 0.9's FROLS (NARMAX, AIC, n_info_values 15, least squares), degree 2 and 3,
+  ylag = xlag 1-4 (8 structures), simulated free-run by this script.
+Structures whose free run diverges (beyond DIVERGED_FACTOR fit-part standard deviations) are not eligible.
+Each family's structure is chosen by free-run RMSE on the fit part and scored on the held-out part. Both are
+fitted at the record's own rate and, where `diagnose` works on a decimated record, at that rate too (on the
+same block means, so on the same held-out samples as `diagnose`). sysidentpy: tests/python/requirements-peers.txt
+(`pip install --no-deps -r tests/python/requirements-peers.txt`; its other dependencies are numpy and scipy).
 
-    .venv/bin/python scripts/peer_compare.py                    # every record, Markdown table on stdout
-    .venv/bin/python scripts/peer_compare.py --records servo-sts3215 dc-generator --csv out.csv
+`backlash diagnose FILE --json` runs with each record's settings (RECORDS: `--decimate` where given, otherwise
+the tool chooses the rate); its wall time and peak memory are recorded (GNU time, see run_process).
 
-Any peer that fails gives its reason in the row; the script does not stop.
+The results are kept in MEASURED (docs/measured_records.json), so that neither CI nor a reader refits the peers:
+
+    .venv/bin/python scripts/peer_compare.py                 # the committed table, as Markdown (runs nothing)
+    .venv/bin/python scripts/peer_compare.py --ratchet       # diagnose again on every record; exit 1 where a
+                                                             # final held-out error is > 2% above the committed one
+    .venv/bin/python scripts/peer_compare.py --update        # diagnose again on every record and write its
+                                                             # numbers into docs/measured_records.json (the peers
+                                                             # kept; a rate not fitted before is fitted)
+    .venv/bin/python scripts/peer_compare.py --update --refit-peers   # the peers fitted again too (minutes)
+
+After a change to `diagnose` that moves its numbers on purpose, `--update` is the one command that regenerates
+the committed numbers (review the diff of docs/measured_records.json). `--records NAME...` limits any mode to
+some records; `--csv FILE` also writes the table as CSV.
 """
 
 from __future__ import annotations
@@ -48,121 +58,70 @@ import time
 import warnings
 
 import numpy as np
-from scipy.signal import lfilter
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import data_records  # noqa: E402 - the sibling script, found through the line above
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+MEASURED = ROOT / "docs" / "measured_records.json"
 FIT_FRACTION = 0.7
-ARX_ORDERS = range(0, 5)
+ARX_NA = range(1, 5)
+ARX_NB = range(1, 5)
 ARX_DELAYS = range(1, 4)
-# (ylag, xlag) of the NARX structures tried, all with polynomial degree 2.
-NARX_LAGS = [(1, 1), (1, 2), (2, 1), (2, 2), (2, 3), (3, 2), (3, 3), (4, 4)]
-NARX_DEGREE = 2
-NARX_MAX_TERMS = 20
-DIVERGED_FACTOR = 1e3
+NARX_LAGS = range(1, 5)  # ylag = xlag
+NARX_DEGREES = (2, 3)
+NARX_INFO_VALUES = 15
+DIVERGED_FACTOR = 1e3  # a free run beyond this many fit-part standard deviations has diverged
+RATCHET_TOLERANCE = 0.02  # the ratchet fails where a final error is more than 2% above the committed one
 
 
 @dataclasses.dataclass(frozen=True)
 class Record:
-    """A measured record and how to read it."""
+    """A measured record and how `diagnose` runs on it."""
 
     name: str
-    file: str  # relative to the repository root
+    file: str  # the record's name in data/ (scripts/data_records.py finds it)
     time_col: str = "time"
     u_col: str = "u"
     y_col: str = "y"
-    # None: diagnose chooses the rate itself (no --decimate); the peers are then fitted at the rate it chose.
+    # None: diagnose chooses the rate itself (no --decimate).
     decimate: int | None = 1
-    # (na, nb, delay) passed to diagnose only when it refuses to choose a structure itself.
+    # (na, nb, delay) passed to diagnose only when it refuses to choose a structure itself (an older CLI).
     fallback: tuple[int, int, int] = (1, 0, 1)
     note: str = ""
-    # Shown instead of a read error when the file is not there (records not redistributed here).
-    if_absent: str = ""
 
-
-SERVO_ABSENT = "not in the repository (licence unclear); data/servo/README.md says how to rebuild it"
-TANKS_ABSENT = ("not in the repository (the data's terms are not stated); data/tanks/README.md says how to "
-                "rebuild it")
 
 RECORDS = [
-    Record(
-        "brfd-sine",
-        "data/brfd/char_0.5Hz_36lb_1in.csv",
-        time_col="t",
-        decimate=16,
-        fallback=(0, 0, 1),
-        note="friction damper with play, 0.5 Hz sine; 1024 Hz / 16 (the choice of docs/RESULTS.md)",
-    ),
-    Record(
-        "brfd-sine-rate",
-        "data/brfd/char_0.5Hz_36lb_1in.csv",
-        time_col="t",
-        decimate=None,
-        fallback=(0, 0, 1),
-        note="the same sine record at its full 1024 Hz: diagnose chooses the rate",
-    ),
-    Record(
-        "brfd-kocaeli",
-        "data/brfd/KocaeliDBE_36lb.csv",
-        time_col="t",
-        decimate=16,
-        fallback=(0, 0, 1),
-        note="same damper, Kocaeli earthquake history; 1024 Hz / 16",
-    ),
-    Record(
-        "servo-sts3215",
-        "data/servo/sts3215_hold.csv",
-        fallback=(1, 0, 1),
-        note="hobby servo (STS3215) gear play, integer encoder counts, 10 Hz",
-        if_absent=SERVO_ABSENT,
-    ),
-    Record(
-        "servo-sts3250",
-        "data/servo/sts3250_hold.csv",
-        fallback=(1, 0, 1),
-        note="hobby servo (STS3250) gear play, integer encoder counts, 10 Hz",
-        if_absent=SERVO_ABSENT,
-    ),
-    Record(
-        "cascaded-tanks",
-        "data/tanks/tanks_est.csv",
-        decimate=None,
-        fallback=(2, 0, 1),
-        note="cascaded tanks with overflow (benchmark estimation part, 4 s); square-root outflows, the level "
-        "clipped at 10 at the top only",
-        if_absent=TANKS_ABSENT,
-    ),
-    Record(
-        "cascaded-tanks-val",
-        "data/tanks/tanks_val.csv",
-        decimate=None,
-        fallback=(2, 0, 1),
-        note="the benchmark's validation part, another multisine, as a record of its own",
-        if_absent=TANKS_ABSENT,
-    ),
-    Record(
-        "dc-generator",
-        "data/dc_generator/dc_generator.csv",
-        decimate=5,
-        fallback=(1, 0, 1),
-        note="DC motor driving a generator, PRBS input; file already block means of 50, here 5 more "
-        "(2 samples per PRBS bit)",
-    ),
-    Record(
-        "dc-generator-rate",
-        "data/dc_generator/dc_generator.csv",
-        decimate=None,
-        fallback=(1, 0, 1),
-        note="the same record as the file gives it (10 samples per PRBS bit): diagnose chooses the rate",
-    ),
+    Record("brfd-sine", "brfd/char_0.5Hz_36lb_1in.csv", time_col="t", decimate=16, fallback=(0, 0, 1),
+           note="friction damper with play, 0.5 Hz sine; 1024 Hz / 16"),
+    Record("brfd-kocaeli", "brfd/KocaeliDBE_36lb.csv", time_col="t", decimate=16, fallback=(0, 0, 1),
+           note="same damper, Kocaeli earthquake history; 1024 Hz / 16"),
+    Record("brfd-imperial", "brfd/ImperialValleyDBE_36lb.csv", time_col="t", decimate=16, fallback=(0, 0, 1),
+           note="same damper, Imperial Valley earthquake history; 1024 Hz / 16"),
+    Record("servo-sts3215", "servo/sts3215_hold.csv",
+           note="hobby servo (STS3215) gear play, integer encoder counts, 10 Hz"),
+    Record("servo-sts3250", "servo/sts3250_hold.csv",
+           note="hobby servo (STS3250) gear play, integer encoder counts, 10 Hz"),
+    Record("cascaded-tanks", "tanks/tanks_est.csv", decimate=None, fallback=(2, 0, 1),
+           note="cascaded tanks with overflow (benchmark estimation part, 4 s); square-root outflows, the level "
+           "clipped at 10 at the top only"),
+    Record("cascaded-tanks-val", "tanks/tanks_val.csv", decimate=None, fallback=(2, 0, 1),
+           note="the benchmark's validation part, another multisine, as a record of its own"),
+    Record("dc-generator", "dc_generator/dc_generator.csv", decimate=5,
+           note="DC motor driving a generator, PRBS input; file already block means of 50, here 5 more "
+           "(2 samples per PRBS bit)"),
+    Record("emps", "emps/emps.csv", time_col="t", decimate=None, fallback=(2, 0, 1),
+           note="electro-mechanical positioning system (EMPS), closed loop, 1 kHz; force command -> position"),
 ]
 
 
 # ---------------------------------------------------------------- data
 
 
-def read_record(rec: Record, root: pathlib.Path = ROOT) -> tuple[np.ndarray, np.ndarray]:
-    """(u, y) of a record, block-mean decimated like `diagnose --decimate` (a partial last block dropped)."""
-    path = root / rec.file
+def read_record(rec: Record, factor: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """(u, y) of a record, block-mean decimated by factor like `diagnose --decimate` (a partial last block
+    dropped). MissingRecord (naming the fetch command) when the record is not in place."""
+    path = data_records.record_path(rec.file)
     with open(path, newline="") as f:
         reader = csv.DictReader(f)
         missing = [c for c in (rec.u_col, rec.y_col) if c not in (reader.fieldnames or [])]
@@ -170,7 +129,6 @@ def read_record(rec: Record, root: pathlib.Path = ROOT) -> tuple[np.ndarray, np.
             raise ValueError(f"{path}: no column {', '.join(missing)}")
         rows = [(float(r[rec.u_col]), float(r[rec.y_col])) for r in reader]
     data = np.asarray(rows, dtype=float).reshape(-1, 2)
-    factor = rec.decimate or 1
     return block_means(data[:, 0], factor), block_means(data[:, 1], factor)
 
 
@@ -190,6 +148,43 @@ def rmse(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(np.mean((np.asarray(a) - np.asarray(b)) ** 2)))
 
 
+@dataclasses.dataclass(frozen=True)
+class Standardised:
+    """u and y with the fit part's mean subtracted and divided by its standard deviation."""
+
+    u: np.ndarray
+    y: np.ndarray
+    y_mean: float
+    y_std: float
+    n_fit: int
+
+    @staticmethod
+    def of(u: np.ndarray, y: np.ndarray) -> Standardised | None:
+        """None when u or y is constant on the fit part."""
+        n_fit = split_index(len(y))
+        mu_u, sd_u = float(np.mean(u[:n_fit])), float(np.std(u[:n_fit]))
+        mu_y, sd_y = float(np.mean(y[:n_fit])), float(np.std(y[:n_fit]))
+        if sd_u == 0.0 or sd_y == 0.0:
+            return None
+        return Standardised((u - mu_u) / sd_u, (y - mu_y) / sd_y, mu_y, sd_y, n_fit)
+
+    def errors(self, sim: np.ndarray) -> tuple[float, float]:
+        """(fit-part, held-out) RMSE of a standardised simulation, in the record's units."""
+        n = self.n_fit
+        return rmse(sim[:n], self.y[:n]) * self.y_std, rmse(sim[n:], self.y[n:]) * self.y_std
+
+
+@dataclasses.dataclass
+class PeerResult:
+    structure: str = ""
+    heldout_rmse: float = math.nan
+    fit_rmse: float = math.nan
+    reason: str = ""  # why there is no result, or a remark
+
+
+CONSTANT = PeerResult(reason="input or output constant on the fit part")
+
+
 # ---------------------------------------------------------------- ARX
 
 
@@ -202,73 +197,61 @@ class ArxModel:
     b: np.ndarray  # b_0..b_nb
     c: float
 
-    def simulate(self, u: np.ndarray) -> np.ndarray:
-        """Free run from rest: y and u are 0 before the first sample."""
+    def simulate(self, u: np.ndarray, y_rest: float = 0.0, u_rest: float = 0.0) -> np.ndarray:
+        """Free run; before the first sample y = y_rest and u = u_rest (at rest there: in the deviations from
+        that point the model starts from zero, with its constant moved accordingly)."""
+        from scipy.signal import lfilter  # here: the ratchet and the table need no scipy
+
         den = np.concatenate(([1.0], self.a))
         num = np.concatenate((np.zeros(self.delay), self.b))
-        return lfilter(num, den, u) + lfilter([self.c], den, np.ones_like(u))
+        c = self.c + u_rest * float(np.sum(self.b)) - y_rest * float(np.sum(den))
+        return lfilter(num, den, u - u_rest) + lfilter([c], den, np.ones_like(u)) + y_rest
 
 
 def fit_arx(u: np.ndarray, y: np.ndarray, na: int, nb: int, delay: int) -> ArxModel | None:
-    """Equation-error least squares on the given (fit) samples, regressors 0 before the first sample.
-    None when the problem has fewer rows than unknowns or the fitted A polynomial is not stable."""
-    n = len(y)
-    k = na + nb + 2
-    if n <= k:
+    """Equation-error least squares on the given (fit) samples whose regressors are all measured (from sample
+    max(na, delay + nb) on). None when there are fewer such rows than unknowns."""
+    first = max(na, delay + nb)
+    rows = len(y) - first
+    if rows <= na + nb + 2:
         return None
-    cols = []
-    for i in range(1, na + 1):
-        cols.append(-shifted(y, i))
-    for j in range(nb + 1):
-        cols.append(shifted(u, delay + j))
-    cols.append(np.ones(n))
-    phi = np.column_stack(cols)
-    theta, *_ = np.linalg.lstsq(phi, y, rcond=None)
-    a, b, c = theta[:na], theta[na : na + nb + 1], float(theta[-1])
-    if na and np.any(np.abs(np.roots(np.concatenate(([1.0], a)))) >= 1.0):
-        return None
-    return ArxModel(na, nb, delay, a, b, c)
+    cols = [-y[first - i : len(y) - i] for i in range(1, na + 1)]
+    cols += [u[first - delay - j : len(u) - delay - j] for j in range(nb + 1)]
+    cols.append(np.ones(rows))
+    theta, *_ = np.linalg.lstsq(np.column_stack(cols), y[first:], rcond=None)
+    return ArxModel(na, nb, delay, theta[:na], theta[na : na + nb + 1], float(theta[-1]))
 
 
-def shifted(x: np.ndarray, lag: int) -> np.ndarray:
-    out = np.zeros_like(x, dtype=float)
-    if lag < len(x):
-        out[lag:] = x[: len(x) - lag]
-    return out
-
-
-@dataclasses.dataclass
-class PeerResult:
-    structure: str = ""
-    heldout_rmse: float = math.nan
-    fit_rmse: float = math.nan
-    reason: str = ""  # why there is no result, or a remark
+def bounded(sim: np.ndarray | None) -> bool:
+    """A standardised free run that stays finite and within DIVERGED_FACTOR of the fit part's mean."""
+    return sim is not None and bool(np.all(np.isfinite(sim))) and float(np.max(np.abs(sim))) <= DIVERGED_FACTOR
 
 
 def arx_peer(u: np.ndarray, y: np.ndarray) -> PeerResult:
-    """The ARX structure with the lowest fit-part free-run RMSE, scored on the held-out part."""
-    n_fit = split_index(len(y))
-    best = None
-    for na in ARX_ORDERS:
-        for nb in ARX_ORDERS:
+    """The ARX structure with the lowest fit-part free-run RMSE on the standardised record (simulated from the
+    record's first sample), scored on the held-out part; diverging structures are not eligible."""
+    st = Standardised.of(u, y)
+    if st is None:
+        return CONSTANT
+    best, diverged = None, 0
+    for na in ARX_NA:
+        for nb in ARX_NB:
             for d in ARX_DELAYS:
-                m = fit_arx(u[:n_fit], y[:n_fit], na, nb, d)
+                m = fit_arx(st.u[: st.n_fit], st.y[: st.n_fit], na, nb, d)
                 if m is None:
                     continue
-                sim = m.simulate(u)
-                if not np.all(np.isfinite(sim)):
+                sim = m.simulate(st.u, st.y[0], st.u[0])
+                if not bounded(sim):
+                    diverged += 1
                     continue
-                e = rmse(sim[:n_fit], y[:n_fit])
-                if best is None or e < best[0]:
-                    best = (e, m, sim)
+                e_fit, e_held = st.errors(sim)
+                if best is None or e_fit < best[0]:
+                    best = (e_fit, e_held, m)
     if best is None:
-        return PeerResult(reason="no stable ARX structure")
-    e, m, sim = best
-    return PeerResult(
-        structure=f"{m.na},{m.nb},{m.delay}",
-        heldout_rmse=rmse(sim[n_fit:], y[n_fit:]),
-        fit_rmse=e,
-    )
+        return PeerResult(reason=f"no ARX structure stays bounded ({diverged} diverged)")
+    e_fit, e_held, m = best
+    return PeerResult(structure=f"{m.na},{m.nb},{m.delay}", heldout_rmse=e_held, fit_rmse=e_fit,
+                      reason=f"{diverged} of 48 diverged" if diverged else "")
 
 
 # ---------------------------------------------------------------- NARX
@@ -286,37 +269,41 @@ class NarxModel:
         """Free run; before the first sample y = y_rest and u = u_rest. None once |y| exceeds bound."""
         max_lag = int(max(1, np.max(self.codes % 1000)))
         n = len(u)
-        yp = np.full(n + max_lag, y_rest)
-        up = np.concatenate((np.full(max_lag, u_rest), u))
-        terms = [[(int(c) // 1000, int(c) % 1000) for c in row if c != 0] for row in self.codes]
-        for k in range(n):
-            kk = k + max_lag
+        yp = [y_rest] * (n + max_lag)
+        up = [u_rest] * max_lag + [float(v) for v in u]
+        terms = [
+            (float(coef), [(int(c) // 1000 == 1, int(c) % 1000) for c in row if c != 0])
+            for coef, row in zip(self.theta, self.codes)
+        ]
+        for kk in range(max_lag, n + max_lag):
             acc = 0.0
-            for coef, factors in zip(self.theta, terms):
+            for coef, factors in terms:
                 v = coef
-                for kind, lag in factors:
-                    v *= yp[kk - lag] if kind == 1 else up[kk - lag]
+                for is_y, lag in factors:
+                    v *= yp[kk - lag] if is_y else up[kk - lag]
                 acc += v
             if not math.isfinite(acc) or abs(acc) > bound:
                 return None
             yp[kk] = acc
-        return yp[max_lag:]
+        return np.asarray(yp[max_lag:])
 
 
-def fit_narx(u: np.ndarray, y: np.ndarray, ylag: int, xlag: int) -> NarxModel:
-    """FROLS with BIC term selection on the given (already standardised) fit samples."""
+def fit_narx(u: np.ndarray, y: np.ndarray, lag: int, degree: int) -> NarxModel:
+    """FROLS (NARMAX, AIC over the first NARX_INFO_VALUES terms, least squares) on the given (standardised)
+    fit samples, ylag = xlag = lag."""
     from sysidentpy.basis_function import Polynomial
     from sysidentpy.model_structure_selection import FROLS
     from sysidentpy.parameter_estimation import LeastSquares
 
     model = FROLS(
         order_selection=True,
-        n_info_values=NARX_MAX_TERMS,
-        ylag=ylag,
-        xlag=xlag,
-        info_criteria="bic",
+        n_info_values=NARX_INFO_VALUES,
+        ylag=lag,
+        xlag=lag,
+        info_criteria="aic",
         estimator=LeastSquares(),
-        basis_function=Polynomial(degree=NARX_DEGREE),
+        basis_function=Polynomial(degree=degree),
+        model_type="NARMAX",
     )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -324,43 +311,55 @@ def fit_narx(u: np.ndarray, y: np.ndarray, ylag: int, xlag: int) -> NarxModel:
     return NarxModel(np.asarray(model.final_model), np.asarray(model.theta).ravel())
 
 
-def narx_peer(u: np.ndarray, y: np.ndarray, lags=NARX_LAGS) -> PeerResult:
+def narx_peer(u: np.ndarray, y: np.ndarray, lags=NARX_LAGS, degrees=NARX_DEGREES) -> PeerResult:
     """The bounded NARX structure with the lowest fit-part free-run RMSE, scored on the held-out part."""
-    n_fit = split_index(len(y))
-    mu_u, sd_u = float(np.mean(u[:n_fit])), float(np.std(u[:n_fit]))
-    mu_y, sd_y = float(np.mean(y[:n_fit])), float(np.std(y[:n_fit]))
-    if sd_u == 0.0 or sd_y == 0.0:
-        return PeerResult(reason="input or output constant on the fit part")
-    us, ys = (u - mu_u) / sd_u, (y - mu_y) / sd_y
-    y_rest, u_rest = -mu_y / sd_y, -mu_u / sd_u
-    bound = DIVERGED_FACTOR + abs(y_rest)
+    st = Standardised.of(u, y)
+    if st is None:
+        return CONSTANT
     ranked, failures, diverged = [], [], 0
-    for ylag, xlag in lags:
+    tried = [(lag, degree) for degree in degrees for lag in lags]
+    for lag, degree in tried:
         try:
-            m = fit_narx(us[:n_fit], ys[:n_fit], ylag, xlag)
+            m = fit_narx(st.u[: st.n_fit], st.y[: st.n_fit], lag, degree)
         except Exception as e:  # noqa: BLE001 - a failing structure is reported, not fatal
-            failures.append(f"{ylag},{xlag}: {type(e).__name__}")
+            failures.append(f"{lag}/{degree}: {type(e).__name__}")
             continue
-        sim = m.simulate(us, y_rest, u_rest, bound)
-        if sim is None:
+        sim = m.simulate(st.u, st.y[0], st.u[0], DIVERGED_FACTOR)
+        if not bounded(sim):
             diverged += 1
             continue
-        e_fit = rmse(sim[:n_fit], ys[:n_fit]) * sd_y
-        ranked.append((e_fit, (ylag, xlag), len(m.theta), sim))
+        ranked.append((*st.errors(sim), f"lag {lag}, degree {degree} ({len(m.theta)} terms)"))
     if not ranked:
-        why = f"all {len(lags)} structures failed ({diverged} diverged"
-        why += f"; {'; '.join(failures)})" if failures else ")"
-        return PeerResult(reason=why)
-    e_fit, (ylag, xlag), terms, sim = min(ranked, key=lambda r: r[0])
-    remark = f"{diverged} of {len(lags)} diverged" if diverged else ""
+        why = f"all {len(tried)} structures failed ({diverged} diverged"
+        return PeerResult(reason=why + (f"; {'; '.join(failures)})" if failures else ")"))
+    e_fit, e_held, structure = min(ranked, key=lambda r: r[0])
+    remark = f"{diverged} of {len(tried)} diverged" if diverged else ""
     if failures:
         remark += ("; " if remark else "") + f"{len(failures)} failed to fit"
-    return PeerResult(
-        structure=f"{ylag},{xlag} ({terms} terms)",
-        heldout_rmse=rmse(sim[n_fit:], ys[n_fit:]) * sd_y,
-        fit_rmse=e_fit,
-        reason=remark,
-    )
+    return PeerResult(structure=structure, heldout_rmse=e_held, fit_rmse=e_fit, reason=remark)
+
+
+@dataclasses.dataclass
+class PeerSet:
+    """Both peers on a record at one rate."""
+
+    decimate: int
+    n: int
+    mean_predictor: float  # the held-out RMSE of predicting the fit part's mean: the bar any model clears
+    arx: PeerResult
+    narx: PeerResult
+
+
+def peers_at(rec: Record, factor: int) -> PeerSet:
+    u, y = read_record(rec, factor)
+    n_fit = split_index(len(y))
+    found = []
+    for peer in (arx_peer, narx_peer):
+        try:
+            found.append(peer(u, y))
+        except Exception as e:  # noqa: BLE001 - any peer failure becomes a note
+            found.append(PeerResult(reason=f"{type(e).__name__}: {e}"))
+    return PeerSet(factor, len(y), rmse(y[n_fit:], np.mean(y[:n_fit])), *found)
 
 
 # ---------------------------------------------------------------- diagnose
@@ -445,8 +444,8 @@ def refused_for_structure(stderr: str) -> bool:
     return "--na" in stderr and "required" in stderr
 
 
-def diagnose_command(binary: str, rec: Record, root: pathlib.Path, structure=None) -> list[str]:
-    cmd = [binary, "diagnose", str(root / rec.file), "--json"]
+def diagnose_command(binary: str, rec: Record, path: pathlib.Path, structure=None) -> list[str]:
+    cmd = [binary, "diagnose", str(path), "--json"]
     if rec.decimate is not None:
         cmd += ["--decimate", str(rec.decimate)]
     cmd += ["--time-col", rec.time_col, "--u-col", rec.u_col, "--y-col", rec.y_col]
@@ -456,14 +455,17 @@ def diagnose_command(binary: str, rec: Record, root: pathlib.Path, structure=Non
     return cmd
 
 
-def run_diagnose(binary: str, rec: Record, timeout: float, root: pathlib.Path = ROOT) -> DiagnoseResult:
+def run_diagnose(binary: str, rec: Record, timeout: float) -> DiagnoseResult:
+    """`diagnose` on the record with its settings; a failure is in the result's reason. MissingRecord when
+    the record is not in place."""
+    path = data_records.record_path(rec.file)
     if not pathlib.Path(binary).is_file():
         return DiagnoseResult(reason=f"{binary} not found: run `cargo build --release`")
     try:
-        code, out, err, secs, mib = run_process(diagnose_command(binary, rec, root), timeout)
+        code, out, err, secs, mib = run_process(diagnose_command(binary, rec, path), timeout)
         chosen_by = "tool"
         if code not in (0, None) and refused_for_structure(err):
-            cmd = diagnose_command(binary, rec, root, rec.fallback)
+            cmd = diagnose_command(binary, rec, path, rec.fallback)
             code, out, err, secs, mib = run_process(cmd, timeout)
             chosen_by = "fallback"
     except OSError as e:
@@ -506,73 +508,166 @@ def number(v) -> float:
     return float(v) if isinstance(v, (int, float)) else math.nan
 
 
+# ---------------------------------------------------------------- the committed numbers
+
+
+def to_json(value):
+    """Dataclasses as dicts, NaN as null (the file is plain JSON)."""
+    if dataclasses.is_dataclass(value):
+        return {k: to_json(v) for k, v in dataclasses.asdict(value).items()}
+    if isinstance(value, dict):
+        return {k: to_json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [to_json(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def from_json(cls, doc: dict):
+    """The dataclass cls from to_json's dict (null numbers back to NaN; nested PeerResults rebuilt)."""
+    kwargs = {}
+    for f in dataclasses.fields(cls):
+        v = doc.get(f.name)
+        if f.type in ("PeerResult",):
+            v = from_json(PeerResult, v or {})
+        elif f.type == "float":
+            v = math.nan if v is None else float(v)
+        kwargs[f.name] = v
+    return cls(**kwargs)
+
+
+@dataclasses.dataclass
+class Entry:
+    """One record's committed measurement: diagnose and the peers at each rate fitted."""
+
+    record: str
+    diagnose: DiagnoseResult
+    peers: list[PeerSet]
+
+    def peers_at(self, factor: int) -> PeerSet | None:
+        return next((p for p in self.peers if p.decimate == factor), None)
+
+
+def load(path: pathlib.Path = MEASURED) -> dict[str, Entry]:
+    if not path.is_file():
+        return {}
+    doc = json.loads(path.read_text())
+    return {
+        name: Entry(name, from_json(DiagnoseResult, e["diagnose"]), [from_json(PeerSet, p) for p in e["peers"]])
+        for name, e in doc["records"].items()
+    }
+
+
+def save(entries: dict[str, Entry], path: pathlib.Path = MEASURED) -> None:
+    order = [r.name for r in RECORDS]
+    doc = {
+        "about": "written by `python scripts/peer_compare.py --update` (see its help): the measured records' "
+        "held-out free-run RMSE of `backlash diagnose` and of the peers, the numbers the ratchet checks",
+        "records": {
+            name: {
+                "command": command_line(record_named(name)),
+                "diagnose": to_json(entries[name].diagnose),
+                "peers": to_json(entries[name].peers),
+            }
+            for name in order
+            if name in entries
+        },
+    }
+    path.write_text(json.dumps(doc, indent=1) + "\n")
+
+
+def command_line(rec: Record) -> str:
+    """The diagnose command a record is measured with, as a reader types it."""
+    return " ".join(diagnose_command("backlash", rec, pathlib.Path("data") / rec.file))
+
+
+def record_named(name: str) -> Record:
+    return next(r for r in RECORDS if r.name == name)
+
+
+def measure(rec: Record, binary: str, timeout: float, old: Entry | None, refit: bool) -> Entry:
+    """diagnose on the record; the peers at the file's rate and at diagnose's, fitted unless `old` has them
+    (and refit is off)."""
+    print(f"{rec.name}: diagnose ...", file=sys.stderr, flush=True)
+    d = run_diagnose(binary, rec, timeout)
+    peers = []
+    for factor in sorted({1, d.decimate}):
+        kept = None if (refit or old is None) else old.peers_at(factor)
+        if kept is None:
+            print(f"{rec.name}: fitting the peers at decimation {factor} ...", file=sys.stderr, flush=True)
+            kept = peers_at(rec, factor)
+        peers.append(kept)
+    return Entry(rec.name, d, peers)
+
+
+def ratchet(rec: Record, committed: Entry | None, binary: str, timeout: float) -> tuple[bool, str]:
+    """(passed, the line saying why): diagnose again and compare its final held-out error with the committed
+    one."""
+    d = run_diagnose(binary, rec, timeout)
+    if d.reason:
+        return False, f"{rec.name}: diagnose failed: {d.reason}"
+    if committed is None or not math.isfinite(committed.diagnose.after):
+        return False, f"{rec.name}: after.rmse {d.after:.6g}, but no committed number (run --update)"
+    was, now = committed.diagnose.after, d.after
+    rate = "" if d.decimate == committed.diagnose.decimate else (
+        f"; decimation {d.decimate}, committed at {committed.diagnose.decimate}")
+    change = f"after.rmse {now:.6g} against the committed {was:.6g} ({(now / was - 1) * 100:+.2f}%{rate})"
+    if not now <= was * (1 + RATCHET_TOLERANCE):
+        return False, f"{rec.name}: {change}: more than {RATCHET_TOLERANCE:.0%} worse"
+    return True, f"{rec.name}: {change}, {d.seconds:.1f} s"
+
+
 # ---------------------------------------------------------------- table
 
 
 COLUMNS = [
     "record",
     "N",
+    "rate (decimate)",
     "mean predictor",
     "ARX na,nb,d",
-    "ARX RMSE",
-    "NARX ylag,xlag",
-    "NARX RMSE",
-    "rate (decimate)",
+    "ARX",
+    "NARX structure",
+    "NARX",
+    "ARX, file's rate",
+    "NARX, file's rate",
     "diagnose na,nb,d",
+    "linear",
     "before",
     "after",
-    "linear",
+    "after / best peer",
     "effects",
     "time [s]",
-    "peak [MiB]",
     "notes",
 ]
 
 
-def compare(rec: Record, binary: str, timeout: float, root: pathlib.Path = ROOT) -> dict:
-    row = {c: "" for c in COLUMNS}
-    row["record"] = rec.name
-    notes = []
-    if rec.if_absent and not (root / rec.file).is_file():
-        row["notes"] = rec.if_absent
-        return row
-    d = run_diagnose(binary, rec, timeout, root)
-    if rec.decimate is None:
-        # The peers work at the rate diagnose chose, so that every error is on the same held-out samples.
-        rec = dataclasses.replace(rec, decimate=d.decimate)
-    row["rate (decimate)"] = f"{d.decimate} ({d.rate_by})" if d.rate_by else ""
-    try:
-        u, y = read_record(rec, root)
-    except (OSError, ValueError) as e:
-        row["notes"] = f"cannot read: {e}"
-        return row
-    n = len(y)
-    row["N"] = n
-    if n < 20:
-        row["notes"] = f"only {n} samples after decimation"
-        return row
-    n_fit = split_index(n)
-    # The error of predicting the fit part's mean on the held-out part: the bar any model should clear.
-    row["mean predictor"] = fmt(rmse(y[n_fit:], np.mean(y[:n_fit])))
-    for label, peer in (("ARX", arx_peer), ("NARX", narx_peer)):
-        try:
-            p = peer(u, y)
-        except Exception as e:  # noqa: BLE001 - any peer failure becomes a note
-            p = PeerResult(reason=f"{type(e).__name__}: {e}")
-        key = "ARX na,nb,d" if label == "ARX" else "NARX ylag,xlag"
-        row[key] = p.structure or "failed"
-        row[f"{label} RMSE"] = fmt(p.heldout_rmse)
-        if p.reason:
-            notes.append(f"{label}: {p.reason}")
-    row["diagnose na,nb,d"] = d.structure + (" (fallback)" if d.chosen_by == "fallback" else "")
-    row["before"], row["after"], row["linear"] = fmt(d.before), fmt(d.after), fmt(d.linear)
-    row["effects"] = d.effects
-    row["time [s]"] = fmt(d.seconds, 3)
-    row["peak [MiB]"] = fmt(d.peak_mib, 3)
-    if d.reason:
-        notes.append(f"diagnose: {d.reason}")
-    row["notes"] = "; ".join(notes)
-    return row
+def row(entry: Entry) -> dict:
+    """The table's row of a record: the peers at diagnose's rate beside it, and at the file's rate."""
+    d = entry.diagnose
+    at, own = entry.peers_at(d.decimate), entry.peers_at(1)
+    r = {c: "" for c in COLUMNS}
+    r["record"] = entry.record
+    notes = [f"diagnose: {d.reason}"] if d.reason else []
+    if at is not None:
+        r["N"] = at.n if d.decimate == 1 or own is None else f"{at.n} ({own.n} as given)"
+        r["mean predictor"] = fmt(at.mean_predictor)
+        r["ARX na,nb,d"], r["ARX"] = at.arx.structure, fmt(at.arx.heldout_rmse)
+        r["NARX structure"], r["NARX"] = at.narx.structure, fmt(at.narx.heldout_rmse)
+        best = min(at.arx.heldout_rmse, at.narx.heldout_rmse)
+        r["after / best peer"] = fmt(d.after / best, 3) if math.isfinite(best) else "n/a"
+        notes += [f"{k}: {p.reason}" for k, p in (("ARX", at.arx), ("NARX", at.narx)) if p.reason]
+    if own is not None and d.decimate != 1:
+        r["ARX, file's rate"], r["NARX, file's rate"] = fmt(own.arx.heldout_rmse), fmt(own.narx.heldout_rmse)
+    else:
+        r["ARX, file's rate"] = r["NARX, file's rate"] = "same"
+    r["rate (decimate)"] = f"{d.decimate} ({d.rate_by})" if d.rate_by else ""
+    r["diagnose na,nb,d"] = d.structure + (" (fallback)" if d.chosen_by == "fallback" else "")
+    r["linear"], r["before"], r["after"] = fmt(d.linear), fmt(d.before), fmt(d.after)
+    r["effects"], r["time [s]"] = d.effects, fmt(d.seconds, 3)
+    r["notes"] = "; ".join(notes)
+    return r
 
 
 def fmt(v: float, digits: int = 4) -> str:
@@ -588,24 +683,60 @@ def markdown(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def run_ratchet(chosen: list[Record], committed: dict[str, Entry], binary: str, timeout: float) -> int:
+    failed = []
+    for rec in chosen:
+        ok, line = ratchet(rec, committed.get(rec.name), binary, timeout)
+        print(("ok      " if ok else "FAILED  ") + line, flush=True)
+        if not ok:
+            failed.append(line)
+    if failed:
+        print(f"error: the ratchet failed on {len(failed)} of {len(chosen)} records (a final held-out error more "
+              f"than {RATCHET_TOLERANCE:.0%} above {MEASURED.relative_to(ROOT)}):", file=sys.stderr)
+        for line in failed:
+            print(f"  {line}", file=sys.stderr)
+        print("  if the change is meant, `python scripts/peer_compare.py --update` writes the new numbers",
+              file=sys.stderr)
+        return 1
+    print(f"the ratchet passed on all {len(chosen)} records")
+    return 0
+
+
 def main(argv=None) -> int:
     names = [r.name for r in RECORDS]
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--records", nargs="+", metavar="NAME", help=f"records to run (default all: {', '.join(names)})")
     p.add_argument("--backlash", default=str(ROOT / "target" / "release" / "backlash"), help="the CLI program")
     p.add_argument("--timeout", type=float, default=120.0, help="seconds one diagnose run may take (120)")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument("--ratchet", action="store_true",
+                      help="run diagnose on every record; exit 1 where after.rmse is more than 2%% above the "
+                      "committed number")
+    mode.add_argument("--update", action="store_true",
+                      help="run diagnose on every record and write the numbers into docs/measured_records.json")
+    p.add_argument("--refit-peers", action="store_true", help="with --update: fit the peers again too")
     p.add_argument("--csv", metavar="FILE", help="also write the table as CSV")
     a = p.parse_args(argv)
-    chosen = RECORDS
-    if a.records:
-        unknown = [n for n in a.records if n not in names]
-        if unknown:
-            p.error(f"unknown record {', '.join(unknown)}; known: {', '.join(names)}")
-        chosen = [r for r in RECORDS if r.name in a.records]
-    rows = []
-    for rec in chosen:
-        print(f"{rec.name} ...", file=sys.stderr, flush=True)
-        rows.append(compare(rec, a.backlash, a.timeout))
+    unknown = [n for n in (a.records or []) if n not in names]
+    if unknown:
+        p.error(f"unknown record {', '.join(unknown)}; known: {', '.join(names)}")
+    chosen = [r for r in RECORDS if not a.records or r.name in a.records]
+    entries = load()
+    try:
+        if a.ratchet:
+            return run_ratchet(chosen, entries, a.backlash, a.timeout)
+        if a.update:
+            for rec in chosen:
+                entries[rec.name] = measure(rec, a.backlash, a.timeout, entries.get(rec.name), a.refit_peers)
+            save(entries)
+    except data_records.MissingRecord as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    missing = [r.name for r in chosen if r.name not in entries]
+    if missing:
+        print(f"error: no committed numbers for {', '.join(missing)}: run with --update", file=sys.stderr)
+        return 1
+    rows = [row(entries[r.name]) for r in chosen]
     print(markdown(rows))
     if a.csv:
         with open(a.csv, "w", newline="") as f:

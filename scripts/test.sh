@@ -10,6 +10,10 @@ step() { printf '== [%dm%02ds] %s\n' $((SECONDS / 60)) $((SECONDS % 60)) "$*"; }
 step "disk: $(df -h --output=avail . | tail -1 | tr -d ' ') free here"
 step "setup: system packages"
 bash scripts/setup.sh --system
+# The measured records the tests read (data/*/README.md): copied from BACKLASH_FETCH_FROM when set (.ci/run sets
+# it), otherwise downloaded from their sources at pinned commits; every sha256 checked (quick when in place).
+step "the measured records: scripts/fetch_data.py${BACKLASH_FETCH_FROM:+ --from $BACKLASH_FETCH_FROM}"
+python3 scripts/fetch_data.py ${BACKLASH_FETCH_FROM:+--from "$BACKLASH_FETCH_FROM"}
 # The Python environment (pip) is made beside formatting, lints and docs, which do not use it; the release
 # build waits for it (zig links the FMUs' portable binary).
 mkdir -p target
@@ -57,6 +61,10 @@ reusing_release_build() {
 # `cargo build --release` would compile it a second time (about a minute), so no step here runs one.
 step "cargo build --release --lib --bins --tests --examples (both FMUs, the CLI, the tests)"
 cargo build --release --lib --bins --tests --examples
+# The ratchet: `backlash diagnose` on every measured record with its committed settings; fails where a final
+# held-out error is more than 2% above docs/measured_records.json (`--update` there writes new numbers).
+step "the ratchet: diagnose on the nine measured records against docs/measured_records.json"
+.venv/bin/python scripts/peer_compare.py --ratchet
 step "every platform's FMUs: scripts/dist.sh (target/dist)"
 bash scripts/dist.sh
 step "the manylinux2014 wheel (the one build of the Python extension, on the build above), installed into .venv"

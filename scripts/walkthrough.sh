@@ -6,9 +6,10 @@
 #     bash scripts/walkthrough.sh            # uses target/release/backlash, building it when missing
 #     BACKLASH=path/to/backlash bash scripts/walkthrough.sh
 #
-# kocaeli: the friction damper with play under the Kocaeli earthquake history (data/brfd), validated on the
-# Imperial Valley history; dc_generator: the DC motor/generator record (data/dc_generator), where the loop
-# adds several effects one after another.
+# kocaeli: the friction damper with play under the Kocaeli earthquake history (brfd), validated on the
+# Imperial Valley history; dc_generator: the DC motor/generator record (dc_generator), where the loop
+# adds several effects one after another. The records are found by scripts/data_records.py (data/, or
+# BACKLASH_DATA); `python3 scripts/fetch_data.py` puts them there.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bin=${BACKLASH:-target/release/backlash}
@@ -26,6 +27,9 @@ report() {
     echo "$out/$name/report.md"
 }
 
-report kocaeli data/brfd/KocaeliDBE_36lb.csv --time-col t --decimate 16 \
-    --validate-on data/brfd/ImperialValleyDBE_36lb.csv
-report dc_generator data/dc_generator/dc_generator.csv --decimate 5
+record() { python3 scripts/data_records.py "$1"; }
+kocaeli=$(record brfd/KocaeliDBE_36lb.csv)
+imperial=$(record brfd/ImperialValleyDBE_36lb.csv)
+generator=$(record dc_generator/dc_generator.csv)
+report kocaeli "$kocaeli" --time-col t --decimate 16 --validate-on "$imperial"
+report dc_generator "$generator" --decimate 5

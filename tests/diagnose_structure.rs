@@ -208,8 +208,7 @@ fn the_diagnosis_does_not_depend_on_the_records_units() {
 #[test]
 fn the_dc_generator_at_its_files_rate_is_decimated_after_comparing_rates() {
     use backlash::api::{RecordOptions, choose_rate};
-    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("data/dc_generator/dc_generator.csv");
+    let path = crate::records::record("dc_generator/dc_generator.csv");
     let rec = RecordOptions::default()
         .read(&path, true)
         .expect("the record reads");

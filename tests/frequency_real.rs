@@ -1,6 +1,6 @@
 //! Paper 003 on real sine tests: the experiment's plant against the library plant and BacklashPlant.fmu,
 //! the steady window of ramped records, stepped sines against single-frequency records of the same length,
-//! and the measured record of data/brfd.
+//! and the measured damper record brfd/char_0.5Hz_36lb_1in.csv (found by tests/records.rs).
 //!
 //! Needs `cargo build --release` first (the FMU test reads target/fmu/BacklashPlant.fmu).
 
@@ -238,7 +238,7 @@ fn stepped_sine_steps_are_as_accurate_as_single_frequency_records() {
 }
 
 fn brfd() -> PathBuf {
-    root().join("data/brfd/char_0.5Hz_36lb_1in.csv")
+    crate::records::record("brfd/char_0.5Hz_36lb_1in.csv")
 }
 
 /// The measured friction damper: the window is the steady 6 s between the ramps, and the verdict says

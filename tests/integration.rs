@@ -10,6 +10,9 @@
 //! Run one file's tests by its module path: `cargo test --release --test integration fmi_fuzz::`.
 
 mod common;
+// Where a measured record is (data/ or BACKLASH_DATA); benches and examples include the same file.
+mod records;
+mod records_found;
 
 mod cli_records;
 mod cli_stream;

@@ -1,12 +1,15 @@
 """Shared fixtures: where the built FMUs and the CLI are."""
 import os
 import pathlib
+import sys
 
 import pytest
 
 from backlash_fmu import cosim
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
+# The scripts' modules (data_records: where the measured records are) are importable by the tests.
+sys.path.insert(0, str(ROOT / "scripts"))
 FMU_DIR = pathlib.Path(os.environ.get("BACKLASH_FMU_DIR", ROOT / "target" / "fmu"))
 FMU3_DIR = pathlib.Path(os.environ.get("BACKLASH_FMU3_DIR", ROOT / "target" / "fmu3"))
 CLI = pathlib.Path(os.environ.get("BACKLASH_CLI", ROOT / "target" / "release" / "backlash"))

@@ -1,14 +1,12 @@
 """`backlash diagnose` from outside: records simulated here with numpy (an implementation of the contract's
-plant that shares no code with the Rust one), and the measured friction damper of data/brfd."""
+plant that shares no code with the Rust one), and the measured friction damper brfd (found by
+scripts/data_records.py)."""
 import json
-import pathlib
 import subprocess
 
 import numpy as np
 import pytest
-
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-BRFD = ROOT / "data" / "brfd"
+from data_records import record_path
 
 
 def plant(u, noise_std, seed, clip=None):
@@ -85,7 +83,8 @@ def test_measured_friction_damper(cli, tmp_path):
     """The command of docs/RESULTS.md: the winner is friction and it at least halves the held-out RMSE."""
     out = subprocess.run(
         [
-            cli, "diagnose", str(BRFD / "char_0.5Hz_36lb_1in.csv"), "--na", "0", "--nb", "0", "--delay", "1",
+            cli, "diagnose", str(record_path("brfd/char_0.5Hz_36lb_1in.csv")), "--na", "0", "--nb", "0",
+            "--delay", "1",
             "--decimate", "16", "--time-col", "t", "--json", "--report", str(tmp_path / "report"),
         ],
         capture_output=True,

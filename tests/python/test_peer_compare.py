@@ -1,4 +1,5 @@
-"""The peers of scripts/peer_compare.py on synthetic records whose answer is known."""
+"""The peers of scripts/peer_compare.py on synthetic records whose answer is known, its committed numbers
+(docs/measured_records.json) and the ratchet on a stand-in for the program."""
 import importlib.util
 import math
 import pathlib
@@ -56,19 +57,28 @@ def test_fit_arx_recovers_the_true_coefficients():
 def test_arx_peer_heldout_error_is_the_noise_level():
     u, y = linear_record()
     p = pc.arx_peer(u, y)
-    assert p.reason == ""
+    assert p.structure, p
     assert 0.85 * NOISE < p.heldout_rmse < 1.2 * NOISE, p
 
 
-def test_unstable_arx_is_not_eligible():
-    u = np.random.default_rng(3).standard_normal(300)
-    y = lfilter([0.0, 1.0], [1.0, -1.05], u)  # a growing record: the LS fit has a root outside the circle
-    assert pc.fit_arx(u, y, 1, 0, 1) is None
+def test_arx_free_run_starts_at_rest_at_the_given_point():
+    # y(k) = 0.5 y(k-1) + u(k-1) + 0.5: at rest at u = 1 its output is 3
+    m = pc.ArxModel(1, 0, 1, np.array([-0.5]), np.array([1.0]), 0.5)
+    assert m.simulate(np.ones(4), y_rest=3.0, u_rest=1.0) == pytest.approx([3.0] * 4)
+    assert m.simulate(np.array([1.0, 1.0, 0.0]), y_rest=0.0, u_rest=0.0) == pytest.approx([0.5, 1.75, 2.375])
+    assert m.simulate(np.array([1.0, 1.0]), y_rest=2.0, u_rest=4.0) == pytest.approx([5.5, 4.25])
+
+
+def test_a_diverging_free_run_is_not_eligible():
+    assert not pc.bounded(None)
+    assert not pc.bounded(np.array([1.0, 2.0 * pc.DIVERGED_FACTOR]))
+    assert not pc.bounded(np.array([1.0, np.nan]))
+    assert pc.bounded(np.array([-1.0, 1.0]))
 
 
 def test_narx_peer_finds_the_polynomial_and_arx_does_not():
     u, y = polynomial_record()
-    narx = pc.narx_peer(u, y, lags=[(1, 1), (2, 2)])
+    narx = pc.narx_peer(u, y, lags=[1, 2], degrees=(2,))
     arx = pc.arx_peer(u, y)
     assert narx.reason == "", narx
     assert narx.heldout_rmse < 1.3 * NOISE, narx
@@ -99,18 +109,84 @@ def test_run_process_stops_at_the_timeout():
     assert seconds < 2.0
 
 
-def test_missing_binary_gives_a_row_with_the_reason(tmp_path):
-    (tmp_path / "r.csv").write_text("time,u,y\n" + "".join(f"{k},{k % 3},{k % 5}\n" for k in range(60)))
-    rec = pc.Record("synthetic", "r.csv")
-    row = pc.compare(rec, str(tmp_path / "no-such-program"), timeout=1.0, root=tmp_path)
-    assert row["N"] == 60
-    assert row["ARX RMSE"] != "n/a"
-    assert "not found" in row["notes"]
+def a_record(tmp_path, monkeypatch, name="x/r.csv"):
+    """A small record under a data folder of its own (BACKLASH_DATA), and its Record."""
+    monkeypatch.setenv("BACKLASH_DATA", str(tmp_path))
+    (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+    (tmp_path / name).write_text("time,u,y\n" + "".join(f"{k},{k % 3},{k % 5}\n" for k in range(60)))
+    return pc.Record("synthetic", name)
 
 
-def test_missing_record_gives_a_row_with_the_reason(tmp_path):
-    row = pc.compare(pc.Record("absent", "none.csv"), "backlash", timeout=1.0, root=tmp_path)
-    assert row["N"] == "" and "cannot read" in row["notes"]
+def test_missing_binary_gives_the_reason(tmp_path, monkeypatch):
+    rec = a_record(tmp_path, monkeypatch)
+    d = pc.run_diagnose(str(tmp_path / "no-such-program"), rec, timeout=1.0)
+    assert "not found" in d.reason
+
+
+def test_missing_record_is_an_error_naming_the_fetch_command(tmp_path, monkeypatch):
+    monkeypatch.setenv("BACKLASH_DATA", str(tmp_path))
+    with pytest.raises(FileNotFoundError, match="scripts/fetch_data.py"):
+        pc.run_diagnose("backlash", pc.Record("absent", "x/none.csv"), timeout=1.0)
+    with pytest.raises(FileNotFoundError, match="x/none.csv"):
+        pc.read_record(pc.Record("absent", "x/none.csv"))
+
+
+def fake_backlash(tmp_path, after):
+    """A stand-in for the program: `diagnose` prints a JSON answer whose final held-out error is `after`."""
+    doc = {"na": 1, "nb": 0, "delay": 1, "decimate": 1, "rate": {"chosen_by": "data"}, "before": {"rmse": 2.0},
+           "after": {"rmse": after}, "linear": {"rmse": 3.0}, "effects": []}
+    prog = tmp_path / "backlash"
+    prog.write_text(f"#!{sys.executable}\nimport json\nprint(json.dumps({doc!r}))\n")
+    prog.chmod(0o755)
+    return str(prog)
+
+
+def committed(after):
+    return pc.Entry("synthetic", pc.DiagnoseResult(after=after, decimate=1), [])
+
+
+@pytest.mark.parametrize("now, passes", [(1.0, True), (1.0199, True), (0.5, True), (1.0201, False)])
+def test_the_ratchet_fails_only_beyond_two_percent_and_names_both_numbers(tmp_path, monkeypatch, now, passes):
+    rec = a_record(tmp_path, monkeypatch)
+    ok, line = pc.ratchet(rec, committed(1.0), fake_backlash(tmp_path, now), timeout=30.0)
+    assert ok == passes, line
+    assert line.startswith("synthetic") and f"{now:.6g}" in line and "committed 1" in line
+
+
+def test_the_ratchet_fails_without_a_committed_number_or_an_answer(tmp_path, monkeypatch):
+    rec = a_record(tmp_path, monkeypatch)
+    ok, line = pc.ratchet(rec, None, fake_backlash(tmp_path, 1.0), timeout=30.0)
+    assert not ok and "--update" in line
+    ok, line = pc.ratchet(rec, committed(1.0), str(tmp_path / "absent"), timeout=30.0)
+    assert not ok and "not found" in line
+    code = pc.run_ratchet([rec], {"synthetic": committed(0.5)}, fake_backlash(tmp_path, 1.0), timeout=30.0)
+    assert code == 1
+
+
+def test_the_committed_numbers_cover_every_record_at_both_rates():
+    entries = pc.load()
+    assert sorted(entries) == sorted(r.name for r in pc.RECORDS) and len(entries) == 9
+    for name, e in entries.items():
+        d = e.diagnose
+        assert d.reason == "" and math.isfinite(d.after), name
+        rates = {p.decimate for p in e.peers}
+        assert rates == {1, d.decimate}, (name, rates)
+        for p in e.peers:
+            assert math.isfinite(p.arx.heldout_rmse) and math.isfinite(p.narx.heldout_rmse), (name, p)
+
+
+def test_the_committed_file_round_trips(tmp_path):
+    entries = pc.load()
+    pc.save(entries, tmp_path / "m.json")
+    assert pc.load(tmp_path / "m.json") == entries
+
+
+def test_a_row_compares_with_the_best_peer_at_diagnoses_rate():
+    peers = [pc.PeerSet(1, 100, 9.0, pc.PeerResult("1,1,1", 4.0), pc.PeerResult("lag 1", 3.0)),
+             pc.PeerSet(4, 25, 8.0, pc.PeerResult("1,1,1", 2.0), pc.PeerResult("lag 1", 2.5))]
+    r = pc.row(pc.Entry("x", pc.DiagnoseResult(after=1.0, decimate=4, rate_by="data"), peers))
+    assert (r["ARX"], r["NARX"], r["after / best peer"]) == ("2", "2.5", "0.5")
+    assert (r["ARX, file's rate"], r["NARX, file's rate"], r["N"]) == ("4", "3", "25 (100 as given)")
 
 
 def test_json_of_the_new_and_the_old_cli():
