@@ -487,6 +487,35 @@ pub fn bic(cost: f64, n: usize, k: usize) -> f64 {
 mod tests {
     use super::*;
 
+    /// A straight line y = a + b t fitted by least squares: the classical variance of b is s^2 / sum (t -
+    /// mean t)^2; residuals that alternate in sign (negatively correlated) leave the sandwich at the classical
+    /// floor; residuals in long runs of one sign (positively correlated) make it larger.
+    #[test]
+    fn combination_variance_by_hand() {
+        let n = 200;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 / n as f64).collect();
+        let fit = |noise: &dyn Fn(usize) -> f64| {
+            let y: Vec<f64> = (0..n).map(|k| 1.0 + 2.0 * t[k] + noise(k)).collect();
+            let f = |th: &[f64], out: &mut Vec<f64>| {
+                out.clear();
+                out.extend((0..n).map(|k| y[k] - th[0] - th[1] * t[k]));
+                true
+            };
+            let lm = levenberg_marquardt(&f, &[0.0, 0.0], &[1.0, 1.0], &[], &LmOptions::default())
+                .unwrap();
+            let v = combination_variance(&f, &lm.theta, &[1.0, 1.0], 1e-6, &[0.0, 1.0]).unwrap();
+            let tm = t.iter().sum::<f64>() / n as f64;
+            let sxx: f64 = t.iter().map(|v| (v - tm) * (v - tm)).sum();
+            (v, lm.cost / (n - 2) as f64 / sxx)
+        };
+        let (alternating, by_hand) = fit(&|k| if k % 2 == 0 { 0.1 } else { -0.1 });
+        assert!((alternating.classical / by_hand - 1.0).abs() < 1e-4, "{alternating:?} {by_hand}");
+        assert_eq!(alternating.sandwich, alternating.classical);
+        let (runs, _) = fit(&|k| if (k / 20) % 2 == 0 { 0.1 } else { -0.1 });
+        assert!(runs.sandwich > 4.0 * runs.classical, "{runs:?}");
+        assert!(runs.lags >= 10, "{runs:?}");
+    }
+
     #[test]
     fn fits_an_exponential() {
         // y = 2 exp(-0.3 t) + 0.5, exact data.

@@ -593,10 +593,44 @@ pub(crate) fn fit_plain(
             .is_finite()
             .then(|| (EffectModel::plain(lin.clone()), *lin_cost));
     };
-    // Perturbed restarts around the best. On a long record a restart is explored on the window and refined
-    // on the whole fit part only if the optimum it reaches there is lower than the best's own optimum there
-    // (the best, refined on the whole fit part, sits off the window's optimum: its raw window cost would let
-    // almost every restart through, each costing a refinement).
+    // Perturbed restarts in CHAINS independent chains from the same best, each seeded by its own index;
+    // the user's seed only orders the chains, and the lowest cost over all of them wins (ties to the lower
+    // chain), so that no seed picks the answer.
+    let ends: Vec<(u64, EffectModel, f64)> = (0..CHAINS)
+        .map(|i| (i + seed) % CHAINS)
+        .map(|c| {
+            let (m, k) = restart_chain(p, s, (best.clone(), cost), restarts, c);
+            (c, m, k)
+        })
+        .collect();
+    if let Some((_, m, k)) = ends
+        .into_iter()
+        .min_by(|a, b| a.2.total_cmp(&b.2).then(a.0.cmp(&b.0)))
+    {
+        (best, cost) = (m, k);
+    }
+    if cost > *lin_cost {
+        return Some((EffectModel::plain(lin.clone()), *lin_cost));
+    }
+    Some((best, cost))
+}
+
+/// Independent chains of perturbed restarts of the plain fit.
+pub const CHAINS: u64 = 3;
+
+/// One chain of `restarts` perturbed restarts around the best so far (`start`, model and fit-part cost),
+/// seeded by `chain`. On a long record a restart is explored on the window and refined on the whole fit part
+/// only if the optimum it reaches there is lower than the best's own optimum there (the best, refined on the
+/// whole fit part, sits off the window's optimum: its raw window cost would let almost every restart
+/// through, each costing a refinement).
+fn restart_chain(
+    p: &Problem,
+    s: Structure,
+    start: (EffectModel, f64),
+    restarts: usize,
+    chain: u64,
+) -> (EffectModel, f64) {
+    let (mut best, mut cost) = start;
     let window = p.windowed().then(|| p.shortened(p.n_explore));
     let window_optimum = |m: &EffectModel| {
         window
@@ -605,7 +639,7 @@ pub(crate) fn fit_plain(
             .map(|(_, c)| c)
     };
     let mut best_window = window_optimum(&best);
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xD1A6_0000);
+    let mut rng = ChaCha8Rng::seed_from_u64(chain ^ 0xD1A6_0000);
     let typ = best.base.typical(p.y_scale);
     for _ in 0..restarts {
         if p.out_of_time() {
@@ -649,10 +683,7 @@ pub(crate) fn fit_plain(
             cost = c;
         }
     }
-    if cost > *lin_cost {
-        return Some((EffectModel::plain(lin.clone()), *lin_cost));
-    }
-    Some((best, cost))
+    (best, cost)
 }
 
 #[cfg(test)]

@@ -22,6 +22,7 @@ use crate::diagnose::effects::CATALOGUE;
 use crate::diagnose::effects::figure::fmt;
 use crate::diagnose::report::figures::{Curves, Names, ReportFigure, evidence, figures};
 use crate::diagnose::report::input::{ReportError, ReportInput};
+use crate::diagnose::report::play::play_figure;
 use crate::diagnose::search::decision::DECISION_RULE;
 use crate::diagnose::search::engine::Diagnosis;
 use crate::io::write_atomic;
@@ -37,13 +38,14 @@ pub fn write_report(
         source,
     })?;
     let c = Curves::new(d, input);
-    let drawn: Vec<ReportFigure> = figures(d, input, &c);
+    let mut drawn: Vec<ReportFigure> = vec![play_figure(d, input)];
+    drawn.extend(figures(d, input, &c));
     for f in &drawn {
         f.draw(dir)?;
     }
     let mut listed: Vec<(String, String)> =
         drawn.into_iter().map(|f| (f.file, f.caption)).collect();
-    let at = listed.len().min(3);
+    let at = listed.len().min(4);
     listed.insert(at, ("evidence.png".into(), evidence(dir, d, input, &c)?));
     let md = markdown(d, input, &listed);
     let path = dir.join("report.md");
@@ -176,8 +178,10 @@ fn loop_section(s: &mut String, d: &Diagnosis) {
 
 fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) -> String {
     let mut s = String::new();
-    section_header(&mut s, d, input);
+    let _ = writeln!(s, "# Diagnosis of {}\n", input.file);
+    section_verdict(&mut s, d, figures);
     section_warnings(&mut s, input);
+    section_header(&mut s, d, input);
     section_structure(&mut s, d);
     section_backlash(&mut s, d);
     section_result(&mut s, d);
@@ -194,7 +198,7 @@ fn markdown(d: &Diagnosis, input: &ReportInput, figures: &[(String, String)]) ->
 /// The title, the command, the model and the split of the record.
 fn section_header(s: &mut String, d: &Diagnosis, input: &ReportInput) {
     let st = &d.structure;
-    let _ = writeln!(s, "# Diagnosis of {}\n", input.file);
+    let _ = writeln!(s, "## The record and the model\n");
     if let Some(c) = &input.command {
         let _ = writeln!(s, "Produced by `{c}`.\n");
     }
@@ -230,6 +234,33 @@ fn section_header(s: &mut String, d: &Diagnosis, input: &ReportInput) {
             fmt(c.chosen_heldout_rmse)
         );
     }
+}
+
+/// The verdict on play and its reasons, the figure that shows the play, and how much the final model explains
+/// against a constant: the report's first page.
+fn section_verdict(s: &mut String, d: &Diagnosis, figures: &[(String, String)]) {
+    let b = &d.backlash;
+    let _ = writeln!(s, "## Play\n\n**{}**\n", b.headline());
+    let _ = writeln!(s, "Why:\n");
+    for r in &b.reasons {
+        let _ = writeln!(s, "- {r}");
+    }
+    if let Some(e) = &b.experiment {
+        let _ = writeln!(s, "\nThe experiment that would decide: {e}.");
+    }
+    if let Some((file, caption)) = figures.iter().find(|(f, _)| f == "play.png") {
+        let _ = writeln!(s, "\n![The play]({file})\n\n*{caption}*\n");
+    }
+    let _ = writeln!(
+        s,
+        "Held-out fit of the final model: **{:.1}%** (free-run RMSE {}; predicting the fit part's mean gives \
+         {}). The fits worked about the operating point u = {}, y = {} (the fit part's means).\n",
+        d.explained.fit_percent,
+        fmt(d.after_rmse()),
+        fmt(d.explained.constant_rmse),
+        fmt(d.operating_point.u),
+        fmt(d.operating_point.y)
+    );
 }
 
 /// The record's warnings (the JSON's `warnings`): what the record cannot support.
@@ -518,15 +549,14 @@ fn section_validations(s: &mut String, d: &Diagnosis, input: &ReportInput) {
 /// The figures with their captions, and why no offset effect.
 fn section_figures(s: &mut String, _d: &Diagnosis, figures: &[(String, String)]) {
     let _ = writeln!(s, "## Figures\n");
-    for (f, cap) in figures {
+    for (f, cap) in figures.iter().filter(|(f, _)| f != "play.png") {
         let _ = writeln!(s, "![{f}]({f})\n\n{cap}\n");
     }
     let _ = writeln!(
         s,
-        "## Why no \"offset\" effect\n\nA constant output offset d is not in the catalogue: with straight borders \
-         it is absorbed exactly into the gaps, m1 (x - c1) + d = m1 (x - (c1 - d/m1)) and likewise \
-         m2 (x + c2) + d = m2 (x + (c2 + d/m2)), so the plain model already fits it and no data can show it \
-         (an input offset passes through the linear block and is absorbed the same way)."
+        "## Why no \"offset\" effect\n\nA constant offset is not an effect: every fit works about the operating \
+         point (the fit part's means of u and y), so a record shifted by constants, as a sensor's arbitrary zero \
+         shifts it, gets the same answer; the models' parameters are deviations from that point."
     );
 }
 

@@ -6,6 +6,7 @@ pub mod figures;
 pub mod input;
 pub mod markdown;
 pub mod output;
+pub mod play;
 
 pub use figures::ReportFigure;
 pub use input::{ReportError, ReportInput, Validation};

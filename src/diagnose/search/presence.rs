@@ -100,6 +100,8 @@ pub struct BacklashSupport {
     pub travel: f64,
     /// The plays of the two halves of the fit part, when they were compared.
     pub halves: Option<[f64; 2]>,
+    /// For `undetermined`: what kept it from `present` and from `absent`, in short phrases.
+    pub undecided_by: Vec<String>,
     /// For `undetermined`: the experiment that would decide.
     pub experiment: Option<String>,
     /// The answer in one sentence.
@@ -205,15 +207,14 @@ impl BacklashSupport {
                 g(self.play_bound.unwrap_or(f64::NAN))
             ),
             _ => format!(
-                "play: undetermined ({}){}",
-                self.reasons
-                    .iter()
-                    .find(|r| r.contains("not ") || r.contains("negative") || r.contains("wider"))
-                    .or(self.reasons.first())
-                    .map_or("no evidence", |r| r.as_str()),
-                self.experiment
-                    .as_ref()
-                    .map_or(String::new(), |e| format!("; would decide: {e}"))
+                "play: undetermined, {} +/- {} in the linear block's units: {}",
+                g(self.play),
+                self.play_se.map_or("unknown".into(), g),
+                if self.undecided_by.is_empty() {
+                    "no evidence either way".into()
+                } else {
+                    self.undecided_by.join("; ")
+                }
             ),
         }
     }
@@ -236,6 +237,7 @@ impl BacklashSupport {
             reversals: [0, 0],
             travel: 0.0,
             halves: None,
+            undecided_by: vec![why.into()],
             experiment: None,
             verdict: why.into(),
         }
@@ -348,33 +350,50 @@ fn imitators(p: &Problem, r: &Reading) -> Vec<PlayFree> {
         .collect()
 }
 
-/// Reversals of `x` whose excursion afterwards exceeds `h`: the turning points of the zigzag with threshold
-/// `h` (a reversal is counted once `x` has moved `h` back from its extreme). `h` of 0 or less counts none.
+/// Reversals of `x` whose excursion afterwards exceeds `h` (see [`reversal_turns`]).
 pub fn crossing_reversals(x: &[f64], h: f64) -> usize {
+    reversal_turns(x, h).len()
+}
+
+/// The samples where `x` turns and then moves at least `h` back: the turning points of the zigzag with
+/// threshold `h` (a turn is counted once `x` has moved `h` from its extreme). `h` of 0 or less, or NaN,
+/// gives none.
+pub fn reversal_turns(x: &[f64], h: f64) -> Vec<usize> {
+    let mut turns = Vec::new();
     if h.is_nan() || h <= 0.0 || x.is_empty() {
-        return 0;
+        return turns;
     }
-    let (mut lo, mut hi) = (x[0], x[0]);
+    let (mut lo, mut hi) = ((x[0], 0), (x[0], 0));
     let mut dir = 0i8;
-    let mut count = 0;
-    for &v in x {
+    for (k, &v) in x.iter().enumerate() {
         match dir {
-            1 if v > hi => hi = v,
-            1 if hi - v >= h => (count, dir, lo) = (count + 1, -1, v),
-            -1 if v < lo => lo = v,
-            -1 if v - lo >= h => (count, dir, hi) = (count + 1, 1, v),
+            1 if v > hi.0 => hi = (v, k),
+            1 if hi.0 - v >= h => {
+                turns.push(hi.1);
+                (dir, lo) = (-1, (v, k));
+            }
+            -1 if v < lo.0 => lo = (v, k),
+            -1 if v - lo.0 >= h => {
+                turns.push(lo.1);
+                (dir, hi) = (1, (v, k));
+            }
             0 => {
-                (lo, hi) = (lo.min(v), hi.max(v));
-                if v - lo >= h {
-                    (dir, hi) = (1, v);
-                } else if hi - v >= h {
-                    (dir, lo) = (-1, v);
+                if v < lo.0 {
+                    lo = (v, k);
+                }
+                if v > hi.0 {
+                    hi = (v, k);
+                }
+                if v - lo.0 >= h {
+                    (dir, hi) = (1, (v, k));
+                } else if hi.0 - v >= h {
+                    (dir, lo) = (-1, (v, k));
                 }
             }
             _ => {}
         }
     }
-    count
+    turns
 }
 
 /// Everything the decision reads.
@@ -421,14 +440,50 @@ impl Context<'_, '_> {
         if present {
             return self.answer(Presence::Present, None, halves);
         }
-        let bound =
-            (!impossible && !gains && !significant && !self.friction_reads_as_play(reasons))
-                .then(|| self.bound(reasons))
-                .flatten();
-        match bound {
-            Some(b) => self.answer(Presence::Absent, Some(b), halves),
-            None => self.answer(Presence::Undetermined, None, halves),
+        let friction = self.friction_reads_as_play(reasons);
+        let bound = (!impossible && !gains && !significant && !friction)
+            .then(|| self.bound(reasons))
+            .flatten();
+        if let Some(b) = bound {
+            return self.answer(Presence::Absent, Some(b), halves);
         }
+        let mut out = self.answer(Presence::Undetermined, None, halves);
+        let [fit, held] = self.reversals;
+        out.undecided_by = [
+            (impossible, "the estimate is impossible for a play (see the reasons)".to_string()),
+            (
+                gains && !significant,
+                "the gap helps on the held-out part but is not significantly above zero".into(),
+            ),
+            (
+                !gains && significant,
+                "the gap is significant on the fit part but a play-free model predicts the held-out part as well"
+                    .into(),
+            ),
+            (
+                !gains && !significant && !friction,
+                "no bound on the play could be established (see the reasons)".into(),
+            ),
+            (
+                friction,
+                "the friction element reads as a play: the record cannot tell them apart".into(),
+            ),
+            (
+                significant && gains && !crossed,
+                format!(
+                    "too few reversals cross the play ({fit} on the fit part, {held} held out; \
+                     {MIN_REVERSALS} and {MIN_HELDOUT_REVERSALS} needed)"
+                ),
+            ),
+            (
+                significant && gains && crossed && !impossible,
+                "the two halves of the fit part disagree on the play".into(),
+            ),
+        ]
+        .into_iter()
+        .filter_map(|(on, why)| on.then_some(why))
+        .collect();
+        out
     }
 
     /// A friction element in the final model is itself a play acting on the force (an elasto-plastic
@@ -620,6 +675,7 @@ impl Context<'_, '_> {
             reversals: self.reversals,
             travel: r.travel,
             halves: halves.map(|[a, b]| [a.0, b.0]),
+            undecided_by: Vec::new(),
             verdict: self.sentence(presence, bound, play_input_units),
             experiment,
         }
@@ -666,5 +722,30 @@ impl Context<'_, '_> {
              amplitudes and rates, a dynamic lag does not",
             g(excursion)
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A triangle of amplitude 1: every turn moves 2 back, so a threshold below 2 counts each turn after the
+    /// first rise, one of 2.5 none; noise of 0.1 on a constant counts nothing at 0.5.
+    #[test]
+    fn reversals_are_counted_by_the_excursion_after_them() {
+        let tri: Vec<f64> = (0..400)
+            .map(|k| {
+                let p = (k % 40) as f64 / 10.0;
+                if p < 2.0 { p - 1.0 } else { 3.0 - p }
+            })
+            .collect();
+        assert_eq!(crossing_reversals(&tri, 1.5), 19);
+        assert_eq!(crossing_reversals(&tri, 2.5), 0);
+        let turns = reversal_turns(&tri, 1.5);
+        assert!(turns.iter().all(|&k| tri[k].abs() > 0.9), "{turns:?}");
+        let flat: Vec<f64> = (0..100).map(|k| if k % 2 == 0 { 0.05 } else { -0.05 }).collect();
+        assert_eq!(crossing_reversals(&flat, 0.5), 0);
+        assert_eq!(crossing_reversals(&flat, 0.0), 0);
+        assert_eq!(crossing_reversals(&[], 1.0), 0);
     }
 }

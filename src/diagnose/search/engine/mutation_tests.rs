@@ -188,21 +188,6 @@ fn linear_fit_reports_the_rmse_per_sample() {
     assert_eq!(fit.output, sim.y);
 }
 
-/// The standard error of a sum of two parameters uses their two variances and twice their covariance:
-/// variances 4 and 9, covariance -1.5 give sqrt(4 + 9 - 3) = sqrt(10); other entries play no part; a
-/// negative total (rounding) gives 0.
-#[test]
-fn sum_std_error_by_hand() {
-    let c = nalgebra::DMatrix::from_row_slice(
-        3,
-        3,
-        &[100.0, 50.0, 60.0, 50.0, 4.0, -1.5, 60.0, -1.5, 9.0],
-    );
-    assert!((sum_std_error(&c, 1, 2) - 10f64.sqrt()).abs() < 1e-15);
-    let negative = nalgebra::DMatrix::from_row_slice(2, 2, &[1.0, -2.0, -2.0, 1.0]);
-    assert_eq!(sum_std_error(&negative, 0, 1), 0.0);
-}
-
 /// A refit of the plain model replaces it only when more than one part in a million lower.
 #[test]
 fn a_refit_must_be_clearly_lower() {
