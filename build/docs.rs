@@ -31,6 +31,9 @@ impl Variable {
     }
 }
 
+/// An element's attributes: (name, value) in order, values unescaped.
+pub type Attributes = Vec<(String, String)>;
+
 /// What the page and the icon are made from.
 pub struct Description {
     pub root: Vec<(String, String)>,
@@ -38,7 +41,7 @@ pub struct Description {
     pub default_experiment: Vec<(String, String)>,
     pub variables: Vec<Variable>,
     /// ModelStructure's outputs: (index or value reference, dependencies) as written.
-    pub outputs: Vec<(Vec<(String, String)>, Option<String>)>,
+    pub outputs: Vec<(Attributes, Option<String>)>,
 }
 
 impl Description {

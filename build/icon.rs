@@ -34,10 +34,9 @@ impl Canvas {
         let a = alpha.min(1.0);
         let old_a = f64::from(self.px[i + 3]) / 255.0;
         let new_a = a + old_a * (1.0 - a);
-        for k in 0..3 {
-            let old = f64::from(self.px[i + k]) * old_a * (1.0 - a);
-            let v = (f64::from(c[k]) * a + old) / new_a;
-            self.px[i + k] = v.round() as u8;
+        for (p, &channel) in self.px[i..i + 3].iter_mut().zip(&c) {
+            let old = f64::from(*p) * old_a * (1.0 - a);
+            *p = ((f64::from(channel) * a + old) / new_a).round() as u8;
         }
         self.px[i + 3] = (new_a * 255.0).round() as u8;
     }

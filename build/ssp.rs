@@ -53,9 +53,9 @@ fn variable<'a>(d: &'a Description, name: &str) -> Result<&'a Variable, String> 
 
 /// The bindings of one unit, checked against its start values.
 fn bindings(d: &Description, values: &[(&str, f64)]) -> Result<String, String> {
-    let mut s = format!(
+    let mut s = String::from(
         "      <ssd:ParameterBindings>\n        <ssd:ParameterBinding>\n          <ssd:ParameterValues>\n\
-         \x20           <ssv:ParameterSet version=\"1.0\" name=\"paper000\">\n              <ssv:Parameters>\n"
+         \x20           <ssv:ParameterSet version=\"1.0\" name=\"paper000\">\n              <ssv:Parameters>\n",
     );
     for &(name, value) in values {
         let v = variable(d, name)?;
