@@ -259,12 +259,14 @@ pub fn build_cdylib(
     Ok((lib, portability))
 }
 
-/// Write `<fmu_dir>/<id>.fmu` with binaries/<folder>/<id>.<ext> and modelDescription.xml (`folder`: the
-/// platform folder of the FMI version, [`Platform::folder`] or [`Platform::folder3`]).
+/// Write `<fmu_dir>/<id>.fmu` with binaries/<folder>/<id>.<ext>, modelDescription.xml and the `extra` files
+/// (archive path, contents: the documentation and the icon) (`folder`: the platform folder of the FMI
+/// version, [`Platform::folder`] or [`Platform::folder3`]).
 pub fn write_fmu(
     fmu_dir: &Path,
     id: &str,
     model_description: &str,
+    extra: &[(String, Vec<u8>)],
     lib: &Path,
     platform: &Platform,
     folder: &str,
@@ -280,6 +282,13 @@ pub fn write_fmu(
             .compression_method(zip::CompressionMethod::Deflated);
         zip.start_file("modelDescription.xml", opts)?;
         zip.write_all(model_description.as_bytes())?;
+        for (name, bytes) in extra {
+            if let Some((dir, _)) = name.rsplit_once('/') {
+                zip.add_directory(format!("{dir}/"), opts)?;
+            }
+            zip.start_file(name.as_str(), opts)?;
+            zip.write_all(bytes)?;
+        }
         zip.add_directory("binaries/", opts)?;
         zip.add_directory(format!("binaries/{folder}/"), opts)?;
         zip.start_file(

@@ -173,9 +173,33 @@ def find_loops(src: Path = SRC) -> list:
     return loops
 
 
+def program_loops(src: Path = SRC) -> list:
+    """Loops between the files of each program under `src/bin/<name>/` (main.rs its root): their `super::` and
+    `crate::` paths, and their paths into the library (`backlash::a::...`) whose first module has the name of
+    one of the program's own modules: a reader that resolves module names cannot tell the two apart, so the
+    program avoids them (src/bin/backlash/structure.rs takes `Structure` from `backlash::api`)."""
+    loops = []
+    for program in sorted(p for p in (src / "bin").glob("*") if p.is_dir()):
+        files = {p.stem: p for p in program.glob("*.rs") if p.stem != "main"}
+        edges = {}
+        for name, p in files.items():
+            code = strip(p.read_text())
+            for segs in paths_in(code):
+                if len(segs) > 1 and segs[0] in ("super", "crate", "backlash") and segs[1] in files:
+                    if segs[1] != name:
+                        edges.setdefault((name,), set()).add((segs[1],))
+            for m in re.finditer(r"\bbacklash::\{([^;]*)\}", code):
+                for segs in expand([], m.group(1)):
+                    if segs and segs[0] in files and segs[0] != name:
+                        edges.setdefault((name,), set()).add((segs[0],))
+        for comp in sccs({(n,) for n in files}, edges):
+            loops.append((f"program {program.name}", comp))
+    return loops
+
+
 def main() -> int:
     prefixes = [tuple(p.split("::")) for p in sys.argv[1:]]
-    loops = find_loops()
+    loops = find_loops() + program_loops()
     shown = [
         (what, comp)
         for what, comp in loops

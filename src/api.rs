@@ -18,9 +18,9 @@ use serde_json::{Value, json};
 use crate::diagnose::engine::{DiagnoseConfig, DiagnoseError, Diagnosis};
 pub use crate::diagnose::fit::rate::Rate;
 use crate::diagnose::output::DiagnosisOut;
-use crate::diagnose::structure::{
-    Replacement, Structure, StructureChoice, fit_len, select_for_record,
-};
+/// A model structure (orders and delay), as the commands declare it.
+pub use crate::diagnose::structure::Structure;
+use crate::diagnose::structure::{Replacement, StructureChoice, fit_len, select_for_record};
 use crate::identify::frequency::analysis::{Analysis, AnalysisOptions, analyse};
 use crate::identify::frequency::{FrequencyError, SineRecord};
 use crate::identify::mrgia::{Estimate, MrgiaConfig};

@@ -26,5 +26,7 @@ pub mod identify;
 pub mod io;
 pub mod plant;
 #[cfg(feature = "cli")]
+pub mod progress;
+#[cfg(feature = "cli")]
 pub mod report;
 pub mod stats;

@@ -57,28 +57,26 @@ def _array(x, name):
     return a
 
 
-def _reporter(progress, bar, signature):
-    """None/False: no progress; True: `bar()`; a callable: itself (called as `signature` says)."""
+def _progress(progress):
+    """The one progress protocol of every function with `progress=`: None or False, no progress; True, the bar
+    on standard error (`_Bar`); a callable, called as progress(done, total), two numbers (total may grow while
+    the work is discovered, as diagnose's rounds are; done never decreases and equals total in the last call of a
+    computation that succeeds)."""
     if progress is None or progress is False:
         return None
+    if progress is True:
+        return _Bar()
     if callable(progress):
         return progress
-    if progress is True:
-        return bar()
-    raise ValueError(f"progress must be None, True, False or a callable {signature}")
-
-
-def _progress(progress):
-    """For the functions that count samples: True is a bar on standard error (tqdm's when installed); a
-    callable is called as progress(done, total)."""
-    return _reporter(progress, _Bar, "progress(done, total)")
+    raise ValueError("progress must be None, True, False or a callable progress(done, total)")
 
 
 class _Bar:
-    """A progress bar on standard error: tqdm's when it is installed, else a line of text."""
+    """The progress bar on standard error: tqdm's when it is installed, else a line of text."""
 
     def __init__(self):
         self._tqdm = None
+        self._start = time.monotonic()
 
     def __call__(self, done, total):
         try:
@@ -87,48 +85,20 @@ class _Bar:
             tqdm = None
         if tqdm is not None:
             if self._tqdm is None:
-                self._tqdm = tqdm(total=total, unit="sample", unit_scale=True)
+                self._tqdm = tqdm(total=total)
+            if self._tqdm.total != total:
+                self._tqdm.total = total
             self._tqdm.update(done - self._tqdm.n)
             if done >= total:
                 self._tqdm.close()
             return
         width = 40
         full = width * done // max(total, 1)
-        sys.stderr.write(f"\r{'#' * full}{'-' * (width - full)} {done}/{total} samples")
+        seconds = time.monotonic() - self._start
+        sys.stderr.write(f"\r{'#' * full}{'-' * (width - full)} {done}/{total} {seconds:6.1f} s")
         if done >= total:
             sys.stderr.write("\n")
         sys.stderr.flush()
-
-
-def _stages(progress):
-    """For the functions that go by stages (diagnose, identify_oe): True is the stage and the elapsed time on
-    standard error; a callable is called as progress(stage), stage a sentence."""
-    return _reporter(progress, _StageLine, "progress(stage)")
-
-
-class _StageLine:
-    """The current stage on one line of standard error, with the seconds since the first."""
-
-    def __init__(self):
-        self._start = time.monotonic()
-
-    def __call__(self, stage):
-        sys.stderr.write(f"\r\033[K{time.monotonic() - self._start:6.1f} s  {stage}")
-        sys.stderr.flush()
-
-    def close(self):
-        sys.stderr.write("\r\033[K")
-        sys.stderr.flush()
-
-
-def _with_stages(progress, call):
-    """call(callback) with the stage reporter of `progress`, its line cleared at the end."""
-    reporter = _stages(progress)
-    try:
-        return call(reporter)
-    finally:
-        if isinstance(reporter, _StageLine):
-            reporter.close()
 
 
 def _spec(params):
@@ -180,12 +150,11 @@ def identify_mrgia(u, y, na, nb, delay, recommended=False, *, refine=False, p0=N
 def identify_oe(u, y, na=None, nb=None, delay=None, *, max_delay=10, single_start=False, max_iter=None,
                 crb_noise_std=None, target_rel=None, progress=None, decimate=None):
     """The output-error fit with standard errors: the dict of `backlash identify oe --json`. Without na, nb and
-    delay the structure is chosen from the data (as the command does). progress: None (default), True (the
-    stage on standard error) or a callable progress(stage). decimate: as the command's --decimate (None: the
-    rate is chosen from the data, as the command does without it; `rate` says how)."""
-    text = _with_stages(progress, lambda report: _backlash.identify_oe(
-        _array(u, "u"), _array(y, "y"), na, nb, delay, max_delay, single_start, max_iter, crb_noise_std,
-        target_rel, report, decimate))
+    delay the structure is chosen from the data (as the command does). progress: None (default), True (a bar
+    on standard error) or a callable progress(done, total), counting stages. decimate: as the command's
+    --decimate (None: the rate is chosen from the data, as the command does without it; `rate` says how)."""
+    text = _backlash.identify_oe(_array(u, "u"), _array(y, "y"), na, nb, delay, max_delay, single_start,
+                                 max_iter, crb_noise_std, target_rel, _progress(progress), decimate)
     return _result(text, file=None)
 
 
@@ -218,12 +187,12 @@ def diagnose(u, y, na=None, nb=None, delay=None, *, ts=None, max_delay=10, fit_f
     first; orders and delays then count decimated samples; None: the rate is chosen from the data, as the command
     does without --decimate, and `rate` says how). Without na, nb and delay the structure is chosen
     from the data. Without ts the rates and frequencies are per sample only: the keys per second or in Hz
-    (c1_rate_per_s, frequency_hz, ...) are left out, and `Ts_note` says so. progress: None (default), True (the
-    stage on standard error) or a callable progress(stage). `warnings` lists what the record cannot support.
+    (c1_rate_per_s, frequency_hz, ...) are left out, and `Ts_note` says so. progress: None (default), True (a
+    bar on standard error) or a callable progress(done, total), counting stages and each round's candidates
+    (the total grows as a round announces them). `warnings` lists what the record cannot support.
     """
-    text = _with_stages(progress, lambda report: _backlash.diagnose(
-        _array(u, "u"), _array(y, "y"), na, nb, delay, ts, max_delay, fit_fraction, seed, max_effects,
-        time_budget, decimate, report))
+    text = _backlash.diagnose(_array(u, "u"), _array(y, "y"), na, nb, delay, ts, max_delay, fit_fraction, seed,
+                              max_effects, time_budget, decimate, _progress(progress))
     return _result(text, file=None, validate_on=[], report=None)
 
 

@@ -26,6 +26,7 @@ import subprocess
 import sys
 import time
 
+from . import _progress
 from ._csv import cell
 
 COLUMNS = ("file", "na", "nb", "delay", "effects", "before_rmse", "after_rmse", "linear_rmse", "seconds",
@@ -98,7 +99,9 @@ def one(path, task="diagnose"):
 
 def run(paths, client=None, task="diagnose", progress=None):
     """Rows of every record of `paths` (see `records`), in order: on the Dask `client`'s cluster, or here
-    one after the other without one. progress: None or a callable progress(done, total)."""
+    one after the other without one. progress: None (default), True (a bar on standard error) or a callable
+    progress(done, total), records done of all."""
+    progress = _progress(progress)
     if task not in TASKS:
         raise ValueError(f"unknown task {task!r}: one of {', '.join(TASKS)}")
     files = records(paths)
@@ -153,16 +156,6 @@ def write(rows, prefix):
     return csv_path, parquet_path
 
 
-def _bar(quiet):
-    if quiet:
-        return None
-
-    def show(done, total):
-        print(f"\r{done}/{total} records", end="\n" if done == total else "", file=sys.stderr, flush=True)
-
-    return show
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="python -m backlash_fmu.fleet",
                                  description="Diagnose every record of a fleet on a Dask cluster.")
@@ -181,17 +174,17 @@ def main(argv=None):
         ap.error("no record: the paths name no file and their folders hold no .csv file")
     start = time.perf_counter()
     if a.serial:
-        rows = run(files, progress=_bar(a.quiet))
+        rows = run(files, progress=not a.quiet)
     else:
         from distributed import Client, LocalCluster
 
         if a.scheduler:
             with Client(a.scheduler) as client:
-                rows = run(files, client, progress=_bar(a.quiet))
+                rows = run(files, client, progress=not a.quiet)
         else:
             with LocalCluster(n_workers=a.workers, threads_per_worker=1, processes=True,
                               dashboard_address=None) as cluster, Client(cluster) as client:
-                rows = run(files, client, progress=_bar(a.quiet))
+                rows = run(files, client, progress=not a.quiet)
     wall = time.perf_counter() - start
     csv_path, parquet_path = write(rows, a.out)
     refused = sum(1 for r in rows if r["error"])

@@ -13,6 +13,7 @@ use backlash::api::{self, ApiError, CrbNoise, LIST_NAMES, MrgiaSettings, OeOptio
 use backlash::diagnose::engine::DiagnoseConfig;
 use backlash::diagnose::structure::Structure;
 use backlash::identify::frequency::analysis::AnalysisOptions;
+use backlash::progress::StageCount;
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -95,29 +96,40 @@ impl Progress {
     }
 }
 
-/// Stage reports to a Python callable `progress(stage)` (a sentence), from any thread, with the GIL taken
-/// back; the first exception it raises is kept (and later reports skipped) until the computation returns.
+/// Stage reports (sentences) as calls `progress(done, total)` of a Python callable, counted by
+/// [`StageCount`] (a stage one, a stage of n parts n; the total grows as parts are announced), from any
+/// thread, with the GIL taken back; the first exception it raises is kept (and later reports skipped) until
+/// the computation returns. A computation that succeeds ends with `progress(total, total)`.
 struct Stages {
     callback: Option<Py<PyAny>>,
+    count: StageCount,
     error: Mutex<Option<PyErr>>,
 }
 
 impl Stages {
-    fn new(callback: Option<Py<PyAny>>) -> Self {
+    /// For a computation of at least `expected` stages.
+    fn new(callback: Option<Py<PyAny>>, expected: usize) -> Self {
         Self {
             callback,
+            count: StageCount::new(expected),
             error: Mutex::new(None),
         }
     }
 
     fn report(&self, stage: &str) {
+        if self.callback.is_some() {
+            self.call(self.count.stage(stage));
+        }
+    }
+
+    fn call(&self, (done, total): (usize, usize)) {
         let Some(cb) = &self.callback else {
             return;
         };
         let mut error = self.error.lock().unwrap_or_else(|e| e.into_inner());
         if error.is_none() {
             Python::attach(|py| {
-                if let Err(e) = cb.call1(py, (stage,)) {
+                if let Err(e) = cb.call1(py, (done, total)) {
                     *error = Some(e);
                 }
             });
@@ -125,6 +137,9 @@ impl Stages {
     }
 
     fn finish<T>(self, result: PyResult<T>) -> PyResult<T> {
+        if result.is_ok() {
+            self.call(self.count.finish());
+        }
         match self.error.into_inner().unwrap_or_else(|e| e.into_inner()) {
             Some(e) => Err(e),
             None => result,
@@ -268,7 +283,8 @@ fn identify_oe(
         crb_noise_std,
     };
     let (u, y) = (u.as_slice()?, y.as_slice()?);
-    let stages = Stages::new(progress);
+    // The fit, and the choice of the structure when it is not declared.
+    let stages = Stages::new(progress, 1 + usize::from(opts.structure.is_none()));
     let r = compute(py, || {
         let fit_fraction = DiagnoseConfig::auto().fit_fraction;
         let (rate, [u, y]) = api::at_rate(u, y, decimate, fit_fraction)?;
@@ -381,7 +397,9 @@ fn diagnose(
     }
     let structure = structure(na, nb, delay)?;
     let (u, y) = (u.as_slice()?, y.as_slice()?);
-    let stages = Stages::new(progress);
+    // The initial state, the linear and the backlash fits, the choice of the structure when it is not
+    // declared; then the rounds, counted as their candidates are announced.
+    let stages = Stages::new(progress, 3 + usize::from(structure.is_none()));
     let r = compute(py, || {
         let cfg = DiagnoseConfig {
             structure,

@@ -117,7 +117,7 @@ def test_simulate_equals_the_packaged_plant_fmu_in_fmpy(bench):
 
 def test_record_options_units_decimate_and_progress_equal_the_program(cli, tmp_path):
     """A file named as a measured record is (`t [s],u [V],y [kN]`): the program reads it with --time-col and
-    --decimate as the API reads the arrays with decimate=; diagnose reports its stages."""
+    --decimate as the API reads the arrays with decimate=; diagnose reports its stages as counts."""
     u, y = _record(3000, 3, noise_std=0.02)
     data = tmp_path / "damper.csv"
     with open(data, "w") as f:
@@ -129,10 +129,10 @@ def test_record_options_units_decimate_and_progress_equal_the_program(cli, tmp_p
                         "--delay", 1, "--max-effects", 1, "--time-budget", 60)
     # The program's Ts is the median step of the decimated time column (0.02 within rounding).
     api = backlash_fmu.diagnose(u, y, **PAPER, ts=program["Ts"] / 2, max_effects=1, time_budget=60, decimate=2,
-                                progress=stages.append)
+                                progress=lambda done, total: stages.append((done, total)))
     _same(api, program)
     assert api["decimate"] == 2 and abs(program["Ts"] - 0.02) < 1e-12
-    assert stages[0] == "choosing the initial state" and all(isinstance(s, str) for s in stages)
+    _check_counts(stages)
     oe = _cli_json(cli, "identify", "oe", data, "--na", 2, "--nb", 0, "--delay", 1)
     _same(backlash_fmu.identify_oe(u, y, **PAPER), oe)
     assert oe["warnings"] == []
@@ -197,6 +197,38 @@ def test_fmu_path_names_what_it_has():
     (lambda u, y: backlash_fmu.crb(u), r"give one of noise_std and snr"),
     (lambda u, y: backlash_fmu.diagnose(u, y, time_budget=0), r"time budget 0 must be"),
 ])
+def _check_counts(calls):
+    """The progress protocol: two integers, done never decreasing and below total until the last call, which
+    has done == total."""
+    assert len(calls) >= 3, calls
+    assert all(isinstance(d, int) and isinstance(t, int) for d, t in calls), calls
+    assert all(a[0] <= b[0] for a, b in zip(calls, calls[1:])), calls
+    assert all(d < t for d, t in calls[:-1]), calls
+    assert calls[-1][0] == calls[-1][1] and calls[-1][0] >= 2, calls
+
+
+def test_every_long_function_calls_progress_with_done_and_total():
+    """One callable serves identify_mrgia, identify_oe and diagnose alike (stages become counts)."""
+    u, y = _record(3000, 3, noise_std=0.02)
+    for call in (lambda p: backlash_fmu.identify_mrgia(u, y, 2, 0, 1, progress=p),
+                 lambda p: backlash_fmu.identify_oe(u, y, progress=p),
+                 lambda p: backlash_fmu.diagnose(u, y, **PAPER, max_effects=1, time_budget=60, progress=p)):
+        calls = []
+        call(lambda done, total: calls.append((done, total)))
+        _check_counts(calls)
+
+
+def test_progress_true_is_the_same_bar_everywhere(capsys):
+    u, y = _record(3000, 3, noise_std=0.02)
+    backlash_fmu.identify_mrgia(u, y, 2, 0, 1, progress=True)
+    mrgia = capsys.readouterr().err
+    backlash_fmu.diagnose(u, y, **PAPER, max_effects=1, time_budget=60, progress=True)
+    diagnose = capsys.readouterr().err
+    assert mrgia and diagnose
+    with pytest.raises(ValueError, match=r"progress\(done, total\)"):
+        backlash_fmu.diagnose(u, y, **PAPER, progress="yes")
+
+
 def test_bad_arguments_raise_value_error_with_the_librarys_message(call, message):
     u, y = _record(400, 6)
     with pytest.raises(ValueError, match=message):

@@ -29,3 +29,23 @@ def test_a_loop_is_found(tmp_path):
     assert module_loops.find_loops(src) == [("files", [("a",), ("b",)])]
     (src / "b.rs").write_text("pub fn f() {}\n")
     assert module_loops.find_loops(src) == []
+
+
+def test_a_program_loop_through_a_library_path_of_the_same_name_is_found(tmp_path):
+    """A program file naming `backlash::diagnose::...` reads, to a reader resolving module names, as an import
+    of the program's own `diagnose` module (the loop src/bin/backlash had between diagnose.rs and
+    structure.rs); the program as it is has none."""
+    sys.path.insert(0, str(SCRIPT.parent))
+    try:
+        import module_loops
+    finally:
+        sys.path.pop(0)
+    assert module_loops.program_loops() == []
+    prog = tmp_path / "src" / "bin" / "prog"
+    prog.mkdir(parents=True)
+    (prog / "main.rs").write_text("mod diagnose;\nmod structure;\n")
+    (prog / "diagnose.rs").write_text("use super::structure::Args;\n")
+    (prog / "structure.rs").write_text("use backlash::diagnose::structure::Structure;\n")
+    assert module_loops.program_loops(tmp_path / "src") == [("program prog", [("diagnose",), ("structure",)])]
+    (prog / "structure.rs").write_text("use backlash::api::Structure;\n")
+    assert module_loops.program_loops(tmp_path / "src") == []

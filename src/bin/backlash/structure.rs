@@ -2,7 +2,9 @@
 //! estimator's commands, `identify mrgia` and `monitor`).
 
 use anyhow::{Result, bail};
-use backlash::diagnose::structure::Structure;
+// Through the API's name: a path through the library's `diagnose` would read, to a reader that resolves
+// module names, as an import of this program's own `diagnose` module, which imports this one.
+use backlash::api::Structure;
 use backlash::plant::MAX_DELAY;
 
 /// The structure the on-line estimator runs with: all three of `--na`, `--nb` and `--delay`.

@@ -207,8 +207,10 @@ impl Context<'_, '_> {
         let total = pointed.len();
         let done = std::sync::atomic::AtomicUsize::new(0);
         let tell = |k: usize| {
-            (p.progress)(&format!(
-                "round {round}: fitting the candidates the residual points to ({k} of {total} done)"
+            (p.progress)(&crate::progress::part(
+                &format!("round {round}: fitting the candidates the residual points to"),
+                k,
+                total,
             ))
         };
         tell(0);
