@@ -659,11 +659,13 @@ pub fn choose_rate(
             Ok(Rate::user(d))
         }
         None if u.len() < 2 => Ok(Rate::user(1)),
-        None => Ok(crate::diagnose::fit::rate::choose(
-            u,
-            y,
-            fit_len(u.len(), fit_fraction),
-        )),
+        None => {
+            // About the operating point, as the diagnosis works: a shifted record gets the same rate.
+            let n_fit = fit_len(u.len(), fit_fraction);
+            let op = crate::diagnose::search::diagnosis::OperatingPoint::of(u, y, n_fit);
+            let (u, y) = (op.deviations(u, op.u), op.deviations(y, op.y));
+            Ok(crate::diagnose::fit::rate::choose(&u, &y, n_fit))
+        }
     }
 }
 

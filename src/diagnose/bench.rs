@@ -334,33 +334,26 @@ mod tests {
         assert!(false_positives.len() <= 1, "{}", false_positives.join("\n"));
     }
 
-    /// A constant output offset is no effect: the declared model absorbs it into the gaps
-    /// (m1 (x - c1) + d = m1 (x - (c1 - d / m1))), so the diagnosis stays null and the gaps move by d.
+    /// A constant offset is no effect: every fit works about the operating point, so a record shifted by
+    /// (u + a, y + b) gets the same answer, the same held-out errors and the same gaps, and the JSON reports
+    /// the point it worked about.
     #[test]
-    fn constant_offset_is_absorbed_into_the_gaps() {
+    fn constant_offsets_change_nothing() {
         let s = scenario(None, 20_100, CHECK_N);
-        let offset = 0.7;
-        let y: Vec<f64> = s.y.iter().map(|v| v + offset).collect();
-        let d = diagnose(&s.u, &y, &DiagnoseConfig::new(2, 0, 1)).unwrap();
-        assert_eq!(d.effect_id(), None);
-        let b = &d.base.base;
-        let (c1, c2, m2) = (
-            s.params.backlash.c1,
-            s.params.backlash.c2,
-            s.params.backlash.m2,
-        );
-        assert!(
-            (b.c1 - (c1 - offset)).abs() < 0.02,
-            "c1 {} vs {}",
-            b.c1,
-            c1 - offset
-        );
-        assert!(
-            (b.c2 - (c2 + offset / m2)).abs() < 0.02,
-            "c2 {} vs {}",
-            b.c2,
-            c2 + offset / m2
-        );
+        let cfg = DiagnoseConfig::new(2, 0, 1);
+        let plain = diagnose(&s.u, &s.y, &cfg).unwrap();
+        for (a, b) in [(5.0, 10.0), (-3.0, -7.0)] {
+            let u: Vec<f64> = s.u.iter().map(|v| v + a).collect();
+            let y: Vec<f64> = s.y.iter().map(|v| v + b).collect();
+            let d = diagnose(&u, &y, &cfg).unwrap();
+            assert_eq!(d.effect_id(), plain.effect_id(), "({a}, {b})");
+            assert_eq!(d.backlash.presence, plain.backlash.presence, "({a}, {b})");
+            let close = |p: f64, q: f64| (p / q - 1.0).abs() < 0.01;
+            assert!(close(d.after_rmse(), plain.after_rmse()), "({a}, {b})");
+            assert!(close(d.backlash.play, plain.backlash.play), "({a}, {b})");
+            assert!((d.operating_point.u - plain.operating_point.u - a).abs() < 1e-9);
+            assert!((d.operating_point.y - plain.operating_point.y - b).abs() < 1e-9);
+        }
     }
 
     /// Degenerate records do not break the diagnosis: a constant record, pure noise (no relation between u

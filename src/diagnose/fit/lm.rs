@@ -509,7 +509,10 @@ mod tests {
             (v, lm.cost / (n - 2) as f64 / sxx)
         };
         let (alternating, by_hand) = fit(&|k| if k % 2 == 0 { 0.1 } else { -0.1 });
-        assert!((alternating.classical / by_hand - 1.0).abs() < 1e-4, "{alternating:?} {by_hand}");
+        assert!(
+            (alternating.classical / by_hand - 1.0).abs() < 1e-4,
+            "{alternating:?} {by_hand}"
+        );
         assert_eq!(alternating.sandwich, alternating.classical);
         let (runs, _) = fit(&|k| if (k / 20) % 2 == 0 { 0.1 } else { -0.1 });
         assert!(runs.sandwich > 4.0 * runs.classical, "{runs:?}");

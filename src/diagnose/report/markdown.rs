@@ -254,7 +254,7 @@ fn section_verdict(s: &mut String, d: &Diagnosis, figures: &[(String, String)]) 
     let _ = writeln!(
         s,
         "Held-out fit of the final model: **{:.1}%** (free-run RMSE {}; predicting the fit part's mean gives \
-         {}). The fits worked about the operating point u = {}, y = {} (the fit part's means).\n",
+         {}). The fits worked about the operating point u = {}, y = {} (the fit part's mean input, the first output).\n",
         d.explained.fit_percent,
         fmt(d.after_rmse()),
         fmt(d.explained.constant_rmse),

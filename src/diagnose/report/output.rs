@@ -173,7 +173,7 @@ pub struct DiagnosisOut<'a> {
     pub samples: usize,
     pub fit_samples: usize,
     pub heldout_samples: usize,
-    /// The levels every fit worked about (the fit part's means).
+    /// The levels every fit worked about (the fit part's mean input, the first output).
     pub operating_point: OperatingPoint,
     /// The final model's held-out fit, percent, and the constant predictor's error (also in `after`).
     pub fit_percent: f64,

@@ -4,8 +4,8 @@
 use crate::diagnose::report::figures::{FigurePanel, ReportFigure};
 use crate::diagnose::report::input::ReportInput;
 use crate::diagnose::search::engine::Diagnosis;
-use crate::report::plot::Series;
 use crate::diagnose::search::presence::reversal_turns;
+use crate::report::plot::Series;
 
 /// Points of the borders drawn across the travel.
 const BORDER_POINTS: usize = 120;
@@ -22,9 +22,11 @@ pub fn play_figure(d: &Diagnosis, input: &ReportInput) -> ReportFigure {
     let x = &sim.x[..nf];
     let step = nf.div_ceil(MAX_DRAWN).max(1);
     let cloud: Vec<(f64, f64)> = (0..nf).step_by(step).map(|k| (x[k], input.y[k])).collect();
-    let (lo, hi) = x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-        (a.min(*v), b.max(*v))
-    });
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
     let bl = m.base.backlash();
     let curve = m.effects().curved_borders;
     let border = |upper: bool| -> Vec<(f64, f64)> {
@@ -59,7 +61,10 @@ pub fn play_figure(d: &Diagnosis, input: &ReportInput) -> ReportFigure {
         title: "The play: output against the linear block's output".into(),
         panels: vec![FigurePanel {
             title: String::new(),
-            x_label: format!("x_hat (the linear block's output, from {})", input.columns[1]),
+            x_label: format!(
+                "x_hat (the linear block's output, from {})",
+                input.columns[1]
+            ),
             y_label: input.columns[2].to_string(),
             series: vec![
                 Series::points("measured (fit part)", cloud).color(7),
@@ -74,5 +79,8 @@ pub fn play_figure(d: &Diagnosis, input: &ReportInput) -> ReportFigure {
 
 /// The samples where `x` turns after crossing `h`, with the measured output there.
 fn reversal_points(x: &[f64], y: &[f64], h: f64) -> Vec<(f64, f64)> {
-    reversal_turns(x, h).into_iter().map(|k| (x[k], y[k])).collect()
+    reversal_turns(x, h)
+        .into_iter()
+        .map(|k| (x[k], y[k]))
+        .collect()
 }

@@ -743,7 +743,9 @@ mod tests {
         assert_eq!(crossing_reversals(&tri, 2.5), 0);
         let turns = reversal_turns(&tri, 1.5);
         assert!(turns.iter().all(|&k| tri[k].abs() > 0.9), "{turns:?}");
-        let flat: Vec<f64> = (0..100).map(|k| if k % 2 == 0 { 0.05 } else { -0.05 }).collect();
+        let flat: Vec<f64> = (0..100)
+            .map(|k| if k % 2 == 0 { 0.05 } else { -0.05 })
+            .collect();
         assert_eq!(crossing_reversals(&flat, 0.5), 0);
         assert_eq!(crossing_reversals(&flat, 0.0), 0);
         assert_eq!(crossing_reversals(&[], 1.0), 0);
