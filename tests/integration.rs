@@ -21,5 +21,6 @@ mod fmi_fuzz;
 mod fmi_state_machine;
 mod fmi_threads;
 mod fmi_timing;
+mod fmu_compensator;
 mod fmu_import;
 mod frequency_real;

@@ -24,8 +24,9 @@
 //! - a non-finite or non-positive slope m1 or m2, or a non-finite gap: the inverse keeps the last valid
 //!   parameters (at first m1 = m2 = 1, c1 = c2 = 0: v = r);
 //! - a negative gap: that gap is taken as 0;
-//! - borders that cross at r (the lower border's input above the upper's, possible when m1 != m2): v is the
-//!   mean of the two border inputs, and the direction memory is left as it was;
+//! - borders that cross (possible when m1 != m2: the lower border's input for r lies above the input from
+//!   which the upper border drives, so no input gives r): v is the input at that crossing whose output is
+//!   nearest r;
 //! - a non-finite r, or a v that would overflow: v holds its last value.
 
 use crate::plant::BacklashParams;
@@ -55,9 +56,10 @@ pub enum Degenerate {
     #[error("gap {name} = {value} is negative: it is taken as 0")]
     NegativeGap { name: &'static str, value: f64 },
     #[error(
-        "the borders cross at r = {r} (lower border's input {lower} above the upper's {upper}): v is their mean"
+        "the borders cross: no input gives r = {r} from the last output (the upper border drives from input \
+         {upper}, above the lower border's input): v is the input whose output is nearest"
     )]
-    CrossedBorders { r: f64, lower: f64, upper: f64 },
+    CrossedBorders { r: f64, upper: f64 },
 }
 
 /// The direction the inverse last drove the backlash in.
@@ -148,13 +150,11 @@ impl BacklashInverse {
                 degenerate: Some(Degenerate::Reference(r)),
             };
         }
-        let (upper, lower) = (r / q.m1 + q.c1, r / q.m2 - q.c2);
-        if lower > upper {
-            degenerate = degenerate.or(Some(Degenerate::CrossedBorders { r, lower, upper }));
-            let v = 0.5 * (upper + lower);
-            return self.finite(r, v, q.step(v, self.w).0, self.direction, degenerate);
+        let (v, direction, crossed) = self.choose(r, &q);
+        if crossed {
+            let upper = self.w / q.m1 + q.c1;
+            degenerate = degenerate.or(Some(Degenerate::CrossedBorders { r, upper }));
         }
-        let (v, direction) = self.choose(r, &q);
         self.finite(r, v, q.step(v, self.w).0, direction, degenerate)
     }
 
@@ -184,25 +184,49 @@ impl BacklashInverse {
     }
 
     /// Which border to drive (or hold): the target is the reference through a play of half-width s
-    /// (`w(k-1)` clamped to `[r - s, r + s]`), so the output moves only when r leaves that band.
-    fn choose(&self, r: f64, q: &BacklashParams) -> (f64, Direction) {
+    /// (`w(k-1)` clamped to `[r - s, r + s]`), so the output moves only when r leaves that band. The flag
+    /// says the borders cross there (no input gives the target).
+    fn choose(&self, r: f64, q: &BacklashParams) -> (f64, Direction, bool) {
         let target = self.w.clamp(r - self.smoothing, r + self.smoothing);
+        // Above `hi` the backlash drives the upper border, below `lo` the lower one.
+        let (lo, hi) = (self.w / q.m2 - q.c2, self.w / q.m1 + q.c1);
         // A move below ROUNDING (relative) is the rounding of the last border's output, not a reversal: on
         // a held reference it would send v across the gap.
         let tiny = ROUNDING * (1.0 + self.w.abs());
         if target > self.w + tiny {
-            (target / q.m1 + q.c1, Direction::Up)
+            (target / q.m1 + q.c1, Direction::Up, false)
         } else if target < self.w - tiny {
-            (target / q.m2 - q.c2, Direction::Down)
-        } else {
-            // Hold w(k-1): v(k-1) moved into the zone of w(k-1) under the current parameters.
-            let (lo, hi) = (self.w / q.m2 - q.c2, self.w / q.m1 + q.c1);
-            let v = if lo <= hi {
-                self.v.clamp(lo, hi)
+            let v = target / q.m2 - q.c2;
+            if v > hi {
+                (
+                    self.nearest_at_crossing(target, q, hi),
+                    Direction::Down,
+                    true,
+                )
             } else {
-                0.5 * (lo + hi)
-            };
-            (v, self.direction)
+                (v, Direction::Down, false)
+            }
+        } else if lo <= hi {
+            // Hold w(k-1): v(k-1) moved into the zone of w(k-1) under the current parameters.
+            (self.v.clamp(lo, hi), self.direction, false)
+        } else {
+            (
+                self.nearest_at_crossing(target, q, hi),
+                self.direction,
+                true,
+            )
+        }
+    }
+
+    /// Where the borders cross no input gives the target: of the inputs just at and just above `hi` (the
+    /// lower border below it, the upper above), the one whose output is nearer the target.
+    fn nearest_at_crossing(&self, target: f64, q: &BacklashParams, hi: f64) -> f64 {
+        let above = hi.next_up();
+        let (at, up) = (q.step(hi, self.w).0, q.step(above, self.w).0);
+        if (at - target).abs() <= (up - target).abs() {
+            hi
+        } else {
+            above
         }
     }
 

@@ -172,20 +172,26 @@ fn a_negative_gap_is_taken_as_zero() {
     );
 }
 
+/// m1 = 1, m2 = 1.5, c1 = c2 = 0.1: from w = -3 the upper border drives above -2.9, but the lower border's
+/// input for -3.3 is -2.3: no input gives -3.3. v = -2.9 would give 1.5 (-2.9 + 0.1) = -4.2, just above it the
+/// upper border holds -3: the nearer.
 #[test]
-fn crossing_borders_give_the_mean_of_the_border_inputs() {
-    // m1 = 1, m2 = 1.5, c1 = c2 = 0.1: lower input r/1.5 - 0.1 exceeds upper r + 0.1 for r < -0.6.
+fn crossing_borders_give_the_nearest_output() {
     let p = BacklashParams {
         c1: 0.1,
         c2: 0.1,
         ..PAPER
     };
-    let a = one(p, -3.0);
-    assert!((a.v - 0.5 * (-2.9 + -2.1)).abs() < 1e-12, "{a:?}");
+    let mut inv = BacklashInverse::new(0.0).unwrap();
+    let a = inv.commit(-3.0, &p);
+    assert!(a.degenerate.is_none() && (a.w + 3.0).abs() < 1e-12, "{a:?}");
+    let a = inv.commit(-3.3, &p);
     assert!(matches!(
         a.degenerate,
         Some(Degenerate::CrossedBorders { .. })
     ));
+    assert!((a.w + 3.0).abs() < 1e-9 && a.v > -2.9, "{a:?}");
+    assert_eq!(p.step(a.v, -3.0).0, a.w);
 }
 
 #[test]

@@ -3,6 +3,7 @@
 //! and parameter structs: the FMU (`fmus::compensator`), the command line and the Python package drive the
 //! same functions.
 
+pub mod adaptive;
 pub mod inverse;
 
 pub use inverse::{Answer, BacklashInverse, Degenerate, Direction, chattering};
