@@ -47,6 +47,8 @@ class _Fmu:
         for k, v in start.items():
             if self.types[k] == "Boolean":
                 self.fmu.setBoolean([self.vr[k]], [bool(v)])
+            elif self.types[k] == "Integer":
+                self.fmu.setInteger([self.vr[k]], [int(v)])
             else:
                 self.fmu.setReal([self.vr[k]], [float(v)])
         self.fmu.enterInitializationMode()
@@ -90,7 +92,7 @@ def run_loop(plant_fmu, estimator_fmu, compensator_fmu, r, noise_std, ramp, memo
         plant.set({"u": uk})
         est.set({"u": uk, "y": y[k]})
         for s in (plant, est, comp):
-            assert s.fmu.doStep(k * 1.0, 1.0) == 0
+            s.fmu.doStep(k * 1.0, 1.0)  # FMPy raises above fmi2Warning
     for s in (plant, est, comp):
         s.fmu.terminate()
         s.fmu.freeInstance()
@@ -138,3 +140,24 @@ def test_a_degenerate_estimate_answers_warning_and_a_log_line(compensator_fmu):
     assert np.isfinite(comp.get(["v"])[0])
     comp.fmu.terminate()
     comp.fmu.freeInstance()
+
+
+def test_fmi2_and_fmi3_invert_the_backlash_exactly_in_fmpys_simulate_fmu():
+    """FMPy's own master (simulate_fmu, one step of Ts per sample): the backlash of v is r at every sample, and
+    the FMI 3.0 variant gives the same v."""
+    from fmpy import simulate_fmu
+
+    rng = np.random.default_rng(3)
+    n = 200
+    names = [("time", float), ("r", float), ("m2", float), ("c1", float), ("c2", float)]
+    signals = np.array([(k, x, 1.5, 0.5, 1.0) for k, x in enumerate(rng.uniform(-2, 2, n))], dtype=names)
+    runs = [simulate_fmu(_need(folder / "BacklashCompensator.fmu"), input=signals, stop_time=n - 1,
+                         step_size=1.0, output_interval=1.0, output=["r", "v", "w"])
+            for folder in (FMU_DIR, FMU3_DIR)]
+    for res in runs:
+        w = 0.0
+        for r, v in zip(res["r"], res["v"]):
+            # The backlash of the paper (m1 1, m2 1.5, c1 0.5, c2 1) on v from w.
+            w = v - 0.5 if v > w + 0.5 else 1.5 * (v + 1.0) if v < w / 1.5 - 1.0 else w
+            assert abs(w - r) < 1e-9, (r, v, w)
+    assert np.array_equal(runs[0]["v"], runs[1]["v"])
