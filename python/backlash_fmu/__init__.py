@@ -1,6 +1,8 @@
 """Backlash identification on NumPy arrays, the FMUs as files, and the `backlash` command.
 
-- `fmu_path(name, fmi_version=2)`: the packaged BacklashPlant / MrgiaEstimator FMU (for FMPy or any FMI tool).
+- `fmu_path(name, fmi_version=2)`: the packaged BacklashPlant / MrgiaEstimator / BacklashCompensator FMU (for
+  FMPy or any FMI tool).
+- `compensate(r, ...)`: the adaptive compensation loop of `backlash compensate`.
 - `simulate(u, **params)`: the plant of `backlash simulate`.
 - `identify_mrgia`, `identify_oe`, `identify_frequency`, `crb`, `diagnose`: the estimators and the diagnosis,
   returning the JSON object of the matching `backlash ... --json` command as a dict (equal to it on the same
