@@ -143,12 +143,19 @@ fn a_degenerate_estimate_answers_warning_with_a_log_line_and_a_finite_v() {
         assert!(f.logged("logStatusWarning", text), "{:?}", f.log());
         assert_eq!(f.set(name, keep), OK);
     }
-    // Crossing borders at r: m2 far from m1 and small gaps.
-    for (n, x) in [("m2", 3.0), ("c1", 0.01), ("c2", 0.01), ("r", -5.0)] {
+    // Crossing borders: m2 = 3 and gaps of 0.01 cross below w = -0.03. Down to w = -3 is fine (from w = 1);
+    // from there the lower border's input for -3.3 (-1.11) lies above the upper border's start (-2.99).
+    for (n, x) in [("m2", 3.0), ("c1", 0.01), ("c2", 0.01), ("r", -3.0)] {
         assert_eq!(f.set(n, x), OK);
     }
-    assert_eq!(f.get("v").0, WARNING);
+    assert_eq!(f.get("v").0, OK);
+    // The step commits w = -3 and answers for the inputs as they stand against it: holding -3 is already
+    // impossible there (the zone of -3 is empty).
     assert_eq!(f.step(1.0), WARNING);
+    assert_eq!(f.get("w").0, WARNING);
+    assert_eq!(f.set("r", -3.3), OK);
+    assert_eq!(f.get("v").0, WARNING);
+    assert_eq!(f.step(2.0), WARNING);
     assert!(f.logged("logStatusWarning", "fmi2DoStep: the borders cross"));
 }
 
