@@ -161,3 +161,27 @@ def test_fmi2_and_fmi3_invert_the_backlash_exactly_in_fmpys_simulate_fmu():
             w = v - 0.5 if v > w + 0.5 else 1.5 * (v + 1.0) if v < w / 1.5 - 1.0 else w
             assert abs(w - r) < 1e-9, (r, v, w)
     assert np.array_equal(runs[0]["v"], runs[1]["v"])
+
+
+def test_fmi3_a_degenerate_estimate_answers_warning_and_a_log_line():
+    from fmpy.fmi3 import FMU3Slave, fmi3Float64, fmi3ValueReference, fmi3Warning
+
+    from conftest import LOG3
+
+    path = _need(FMU3_DIR / "BacklashCompensator.fmu")
+    md = read_model_description(path)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU3Slave(guid=md.instantiationToken, unzipDirectory=extract(path),
+                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="degenerate3")
+    fmu.instantiate(loggingOn=True, logMessage=LOG3.record)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    LOG3.lines.clear()
+    fmu.setFloat64([vr["r"], vr["m2"]], [1.0, -1.0])
+    refs, value = (fmi3ValueReference * 1)(vr["v"]), (fmi3Float64 * 1)()
+    assert fmu.fmi3GetFloat64(fmu.component, refs, 1, value, 1) == fmi3Warning
+    # No valid estimate yet: the identity's inverse, v = r.
+    assert value[0] == 1.0
+    assert any(c == "logStatusWarning" and "m2 = -1 is not a positive number" in m for _, c, m in LOG3.lines)
+    fmu.terminate()
+    fmu.freeInstance()
