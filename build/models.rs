@@ -2,7 +2,8 @@
 //! generated from it. Read by both build scripts (build.rs generates the modules, packaging/build.rs zips the
 //! FMUs).
 
-pub const MODELS: [(&str, &str); 2] = [
+pub const MODELS: [(&str, &str); 3] = [
     ("BacklashPlant", "backlash_plant"),
     ("MrgiaEstimator", "mrgia_estimator"),
+    ("BacklashCompensator", "backlash_compensator"),
 ];

@@ -51,7 +51,7 @@ wheel=$(ls target/wheels/backlash_fmu-*manylinux*.whl)
 python - "$wheel" <<'PY'
 import sys, zipfile
 names = zipfile.ZipFile(sys.argv[1]).namelist()
-missing = [m for m in ("BacklashPlant", "MrgiaEstimator") if f"backlash_fmu/fmu/{m}.fmu" not in names]
+missing = [m for m in ("BacklashPlant", "MrgiaEstimator", "BacklashCompensator") if f"backlash_fmu/fmu/{m}.fmu" not in names]
 if missing:
     sys.exit(f"{sys.argv[1]}: no packaged FMU for {', '.join(missing)}")
 PY

@@ -69,7 +69,7 @@ fmutool_check() {
     local tool status=0
     tool=$(fmutool_cmd)
     "$tool" -h >/dev/null 2>&1 || { echo "fmutool not runnable: $tool" >&2; return 1; }
-    for name in BacklashPlant MrgiaEstimator; do
+    for name in BacklashPlant MrgiaEstimator BacklashCompensator; do
         local out rc=0
         out=$("$tool" -input "$fmu_dir/$name.fmu" -check 2>&1) || rc=$?
         # Without the colour codes.

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Release FMUs for every platform, one .fmu per model and FMI version carrying every platform's binary:
 #
-#   target/dist/fmi2/{BacklashPlant,MrgiaEstimator}.fmu   binaries/linux64, win64, darwin64
-#   target/dist/fmi3/{BacklashPlant,MrgiaEstimator}.fmu   x86_64-linux, x86_64-windows, aarch64-linux,
+#   target/dist/fmi2/{BacklashPlant,MrgiaEstimator,BacklashCompensator}.fmu   binaries/linux64, win64, darwin64
+#   target/dist/fmi3/{BacklashPlant,MrgiaEstimator,BacklashCompensator}.fmu   x86_64-linux, x86_64-windows, aarch64-linux,
 #                                                         x86_64-darwin, aarch64-darwin
 #
 # Installs what it needs on a fresh Debian/Ubuntu machine: the mingw-w64 linker, zig and cargo-zigbuild (PyPI,
@@ -121,7 +121,7 @@ if ((macos)); then
     fmi3+=(--binary "x86_64-darwin=$mac_x86" --binary "aarch64-darwin=$mac_arm")
 fi
 rm -rf target/dist
-for model in BacklashPlant MrgiaEstimator; do
+for model in BacklashPlant MrgiaEstimator BacklashCompensator; do
     .venv/bin/python scripts/merge_fmus.py "target/dist/fmi2/$model.fmu" "target/fmu/$model.fmu" "${fmi2[@]}"
     .venv/bin/python scripts/merge_fmus.py "target/dist/fmi3/$model.fmu" "target/fmu3/$model.fmu" "${fmi3[@]}"
 done

@@ -49,7 +49,8 @@ def wheel_problems(wheel):
         if ext != ["backlash_fmu/_backlash.pyd"]:
             problems.append(f"extension modules {ext}, expected backlash_fmu/_backlash.pyd")
         binaries = []
-        for fmu in ("fmu/BacklashPlant", "fmu/MrgiaEstimator", "fmu3/BacklashPlant", "fmu3/MrgiaEstimator"):
+        for fmu in ("fmu/BacklashPlant", "fmu/MrgiaEstimator", "fmu/BacklashCompensator", "fmu3/BacklashPlant",
+                    "fmu3/MrgiaEstimator", "fmu3/BacklashCompensator"):
             name = f"backlash_fmu/{fmu}.fmu"
             folder = "win64" if fmu.startswith("fmu/") else "x86_64-windows"
             if name not in names:

@@ -3,9 +3,11 @@
 //! functions on NumPy arrays). The keys are those of the contract; the program and the package differ only in
 //! what belongs to a file (`file`, `decimate`, `validate_on`, `report`).
 
+mod compensate;
 mod plant;
 mod record;
 
+pub use compensate::{CompensateOptions, compensate, mode_named};
 pub use plant::{LIST_NAMES, PlantSpec, SpecValue, simulate_plant};
 pub use record::{
     InputCheck, MIN_SAMPLES_PER_PARAMETER, Record, RecordColumns, RecordOptions, sample_period,

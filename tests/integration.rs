@@ -24,6 +24,7 @@ mod fmi_fuzz;
 mod fmi_state_machine;
 mod fmi_threads;
 mod fmi_timing;
+mod fmu_compensator;
 mod fmu_contents;
 mod fmu_import;
 mod frequency_real;

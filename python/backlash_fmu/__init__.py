@@ -1,6 +1,8 @@
 """Backlash identification on NumPy arrays, the FMUs as files, and the `backlash` command.
 
-- `fmu_path(name, fmi_version=2)`: the packaged BacklashPlant / MrgiaEstimator FMU (for FMPy or any FMI tool).
+- `fmu_path(name, fmi_version=2)`: the packaged BacklashPlant / MrgiaEstimator / BacklashCompensator FMU (for
+  FMPy or any FMI tool).
+- `compensate(r, ...)`: the adaptive compensation loop of `backlash compensate`.
 - `simulate(u, **params)`: the plant of `backlash simulate`.
 - `identify_mrgia`, `identify_oe`, `identify_frequency`, `crb`, `diagnose`: the estimators and the diagnosis,
   returning the JSON object of the matching `backlash ... --json` command as a dict (equal to it on the same
@@ -22,21 +24,22 @@ from . import _backlash
 
 __version__ = _backlash.__version__
 __all__ = ["fmu_path", "simulate", "identify_mrgia", "identify_oe", "identify_frequency", "crb", "diagnose",
-           "monitor", "PLANT_PARAMETERS"]
+           "monitor", "compensate", "PLANT_PARAMETERS"]
 
 #: The names `simulate` takes: "a" and "b" (lists), then every parameter of BacklashPlant.fmu, read from its
 #: model description.
 PLANT_PARAMETERS = tuple(_backlash.plant_parameters())
 
-MODELS = ("BacklashPlant", "MrgiaEstimator")
+MODELS = ("BacklashPlant", "MrgiaEstimator", "BacklashCompensator")
 _HERE = pathlib.Path(__file__).resolve().parent
 
 
 def fmu_path(name, fmi_version=2):
-    """The path (str) of the FMU `name` ("BacklashPlant" or "MrgiaEstimator") inside the package: FMI 2.0,
+    """The path (str) of the FMU `name` ("BacklashPlant", "MrgiaEstimator" or "BacklashCompensator") inside the
+    package: FMI 2.0,
     or the FMI 3.0 variant with fmi_version=3."""
     if name not in MODELS:
-        raise ValueError(f"unknown FMU {name!r}: the package has {' and '.join(MODELS)}")
+        raise ValueError(f"unknown FMU {name!r}: the package has {', '.join(MODELS)}")
     folders = {2: "fmu", 3: "fmu3"}
     if fmi_version not in folders:
         raise ValueError(f"fmi_version {fmi_version!r} must be 2 or 3")
@@ -207,4 +210,20 @@ def monitor(u, y, na, nb, delay, wear_ratio=0.1, alarm_period=1e6, *, learn=2000
     """
     text = _backlash.monitor(_array(u, "u"), _array(y, "y"), na, nb, delay, wear_ratio, alarm_period, learn,
                              reference_play, ts, recommended)
+    return _result(text, file=None)
+
+
+def compensate(r, *, noise_std=0.0, noise_seed=0, wear="none", wear_ratio=0.5, memory=500, smoothing=0.0,
+               modes=()):
+    """The adaptive compensation loop of `backlash compensate --json` on the reference `r` (the plant output
+    wanted at each sample) with the paper plant simulated: {"modes": {"none": {"rmse": ..}, "fixed": ..,
+    "adaptive": .., "no-play": ..}, ...}.
+
+    noise_std, noise_seed: the plant's measurement noise; wear: "none", "ramp" (both gaps grow linearly to
+    1 + wear_ratio times their start) or "step" (at the middle); memory: the estimator's memory in samples
+    (it forgets with rho_min = 1/memory, 0 for none: shorter follows wear faster and is noisier); smoothing:
+    the backlash inverse's smoothing half-width (0 = exact); modes: the names to run (empty: all).
+    """
+    text = _backlash.compensate(_array(r, "r"), noise_std, noise_seed, wear, wear_ratio, float(memory),
+                                smoothing, list(modes))
     return _result(text, file=None)

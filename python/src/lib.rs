@@ -473,6 +473,57 @@ fn monitor(
     })
 }
 
+/// compensate(r, noise_std, noise_seed, wear, wear_ratio, memory, smoothing, modes) -> the JSON text of
+/// `backlash compensate` (wear "none", "ramp" or "step"; memory 0: no forgetting; modes: names, empty: all).
+#[pyfunction]
+#[pyo3(signature = (r, noise_std=0.0, noise_seed=0, wear="none", wear_ratio=0.5, memory=500.0, smoothing=0.0,
+    modes=Vec::new()))]
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the Python signature: keyword arguments with defaults"
+)]
+fn compensate(
+    py: Python<'_>,
+    r: PyReadonlyArray1<'_, f64>,
+    noise_std: f64,
+    noise_seed: u64,
+    wear: &str,
+    wear_ratio: f64,
+    memory: f64,
+    smoothing: f64,
+    modes: Vec<String>,
+) -> PyResult<String> {
+    use backlash::compensate::adaptive::Wear;
+    let wear = match wear {
+        "none" => Wear::None,
+        "ramp" => Wear::Ramp { ratio: wear_ratio },
+        "step" => Wear::Step { ratio: wear_ratio },
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "wear '{other}' is unknown: one of none, ramp, step"
+            )));
+        }
+    };
+    let r = r.as_slice()?;
+    compute(py, || {
+        let mut o = api::CompensateOptions {
+            noise_std,
+            noise_seed,
+            wear,
+            memory: (memory != 0.0).then_some(memory),
+            smoothing,
+            ..api::CompensateOptions::default()
+        };
+        if !modes.is_empty() {
+            o.modes = modes
+                .iter()
+                .map(|m| api::mode_named(m))
+                .collect::<Result<_, _>>()?;
+        }
+        Ok(api::compensate(r, &o)?.1.to_string())
+    })
+}
+
 /// run_cli(argv) -> exit status: the `backlash` program on a command line (its name first), with the GIL
 /// released (a long `backlash study` does not hold up other threads).
 #[pyfunction]
@@ -490,6 +541,7 @@ fn _backlash(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(crb, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(monitor, m)?)?;
+    m.add_function(wrap_pyfunction!(compensate, m)?)?;
     m.add_function(wrap_pyfunction!(run_cli, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

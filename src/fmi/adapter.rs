@@ -18,6 +18,8 @@ pub trait Slave: Send {
     fn exit_initialization(&mut self) -> Result<(), String>;
     fn sample_period(&self) -> f64;
     fn step(&mut self, n: u64) -> Result<(), String>;
+    /// See [`Model::warning`].
+    fn warning(&self) -> Option<String>;
     /// A fresh model at its start values.
     fn reset(&mut self);
     fn save(&self, layer: &LayerState) -> Result<Vec<u8>, String>;
@@ -87,6 +89,9 @@ impl<M: Model> Slave for Adapter<M> {
     }
     fn step(&mut self, n: u64) -> Result<(), String> {
         self.0.step(n)
+    }
+    fn warning(&self) -> Option<String> {
+        self.0.warning()
     }
     fn reset(&mut self) {
         self.0 = fresh::<M>();

@@ -218,7 +218,7 @@ pub unsafe fn get_values<C: Api, T>(
         let out = unsafe { slice_mut(value, nvr, "the values") }?;
         // No allocation: the values go straight to the caller's array.
         inst.get_with(ty, vrs, |k, v| out[k] = convert(v))?;
-        Ok(Status::Ok)
+        Ok(inst.model_status(call))
     })
 }
 
@@ -414,7 +414,7 @@ pub fn do_step(inst: &mut Instance, call: impl Api, t: f64, h: f64) -> Outcome {
         format!("currentCommunicationPoint={t}, communicationStepSize={h}")
     });
     match inst.do_step(t, h)? {
-        StepOutcome::Complete => Ok(Status::Ok),
+        StepOutcome::Complete => Ok(inst.model_status(call)),
         StepOutcome::Cut { at, reached, limit } => {
             inst.layer.state = State::StepFailed;
             if inst.log.discards {

@@ -101,6 +101,22 @@ impl Instance {
         }
     }
 
+    /// The status of a successful get or step: Warning, logged under logStatusWarning, when the model
+    /// reports a fallback for the inputs as set ([`Model::warning`](super::Model::warning)), else OK.
+    pub fn model_status(&self, call: impl Api) -> Status {
+        let Some(text) = self.slave.warning() else {
+            return Status::Ok;
+        };
+        if self.log.warnings {
+            self.emit(
+                Status::Warning,
+                "logStatusWarning",
+                &format!("{}: {text}", call.name()),
+            );
+        }
+        Status::Warning
+    }
+
     /// Refuse a call the state machine does not allow, with a reason that names the call and the state.
     pub fn check_state(&self, call: impl Api) -> Result<(), String> {
         if call.allowed_in(self.layer.state) {

@@ -33,6 +33,12 @@ pub trait Model: Serialize + DeserializeOwned + Send + 'static {
     fn sample_period(&self) -> f64;
     /// Advance `n` samples with the inputs as they are now (the core sets the latched ones first).
     fn step(&mut self, n: u64) -> Result<(), String>;
+    /// A condition of the inputs as set that the model answers with a documented fallback instead of refusing
+    /// (a degenerate estimate): the core answers the get or step that meets it with Warning and logs the text
+    /// under logStatusWarning. None (the default): nothing to report.
+    fn warning(&self) -> Option<String> {
+        None
+    }
     /// Consistency of a model restored from an FMU state (which may come from outside: a file, another
     /// process). `Err` names what is wrong; the state is then refused.
     fn check_restored(&self) -> Result<(), String>;

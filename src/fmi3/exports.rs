@@ -305,7 +305,7 @@ pub unsafe extern "C" fn fmi3GetFloat64(
             // No allocation: the values go straight to the caller's array.
             inst.get_with(VarType::Real, vrs, |k, v| out[k] = v.as_real())?;
         }
-        Ok(Status::Ok)
+        Ok(inst.model_status(Call::GetFloat64))
     })
 }
 

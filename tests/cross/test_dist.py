@@ -24,7 +24,7 @@ from macho import CS_ADHOC, CS_HASHTYPE_SHA256, MH_DYLIB, MachO
 sys.path.insert(0, str(ROOT / "scripts"))
 from windows_binary import debug_sections, foreign_imports, pe_imports  # noqa: E402  (scripts/ is not a package)
 
-MODELS = ["BacklashPlant", "MrgiaEstimator"]
+MODELS = ["BacklashPlant", "MrgiaEstimator", "BacklashCompensator"]
 PLATFORMS = {2: ["darwin64", "linux64", "win64"],
              3: ["aarch64-darwin", "aarch64-linux", "x86_64-darwin", "x86_64-linux", "x86_64-windows"]}
 MACOS = {"x86_64-darwin": ("x86_64", (10, 12)), "aarch64-darwin": ("arm64", (11, 0))}  # processor, oldest macOS

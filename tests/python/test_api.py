@@ -160,8 +160,29 @@ def test_packaged_estimator_fmu_in_a_pair_equals_identify_mrgia():
         assert abs(api[name] - est[name]) <= 1e-12, name
 
 
+def test_compensate_equals_the_program(cli, tmp_path):
+    e = np.random.default_rng(5).standard_normal(6000)  # low-pass noise of std 1.5, as in docs/RESULTS.md
+    r = np.empty_like(e)
+    r[0] = 1.5 * e[0]
+    for k in range(1, len(e)):
+        r[k] = 0.9 * r[k - 1] + 1.5 * np.sqrt(1 - 0.81) * e[k]
+    path = tmp_path / "reference.csv"
+    with open(path, "w") as f:
+        f.write("time,r\n")
+        for k, x in enumerate(r.tolist()):
+            f.write(f"{k},{x!r}\n")
+    api = backlash_fmu.compensate(r, noise_std=0.02, wear="step", wear_ratio=0.5, memory=300)
+    program = _cli_json(cli, "compensate", path, "--noise-std", 0.02, "--wear", "step", "--memory", 300)
+    _same(api, program)
+    assert set(api["modes"]) == {"none", "fixed", "adaptive", "no-play"}
+    assert api["modes"]["adaptive"]["rmse_last_quarter"] < 0.2 * api["modes"]["fixed"]["rmse_last_quarter"]
+    with pytest.raises(ValueError, match="wear 'sudden' is unknown"):
+        backlash_fmu.compensate(r, wear="sudden")
+
+
 def test_fmu_path_names_what_it_has():
-    with pytest.raises(ValueError, match="unknown FMU 'Plant': the package has BacklashPlant and MrgiaEstimator"):
+    with pytest.raises(ValueError, match="unknown FMU 'Plant': the package has BacklashPlant, MrgiaEstimator, "
+                                         "BacklashCompensator"):
         backlash_fmu.fmu_path("Plant")
     with pytest.raises(ValueError, match="must be 2 or 3"):
         backlash_fmu.fmu_path("BacklashPlant", fmi_version=1)

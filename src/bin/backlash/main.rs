@@ -3,6 +3,7 @@
 //! One file per command; no logic here beyond parsing and printing (the library does the work).
 
 mod common;
+mod compensate;
 mod diagnose;
 mod experiment;
 mod frequency;
@@ -43,6 +44,7 @@ enum Command {
     Crb(oe::CrbArgs),
     /// Wear monitor: stream a record through the refined estimator and raise an alarm when the play grows.
     Monitor(monitor::MonitorArgs),
+    Compensate(compensate::CompensateArgs),
     /// Monte Carlo study of the paper's example: MRGIA, output error and the Cramer-Rao bound against N.
     Study(study::StudyArgs),
 }
@@ -114,6 +116,7 @@ where
         Command::Diagnose(a) => diagnose::run(a, &typed),
         Command::Study(a) => study::run_study(a),
         Command::Monitor(a) => monitor::run(a),
+        Command::Compensate(a) => compensate::run(a),
     };
     match result {
         Ok(()) => 0,

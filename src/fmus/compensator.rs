@@ -1,0 +1,183 @@
+//! BacklashCompensator.fmu: the backlash inverse of `crate::compensate::inverse` behind the FMI layer.
+//!
+//! Timing: `v` depends directly on the inputs (the ModelStructure says so). After the inputs r, m1, m2, c1,
+//! c2 are set at t_k, a get returns v(k) computed from them and the memory of samples 0..k-1; the step
+//! reaching t_{k+1} commits sample k with the inputs current at t_k (the backlash output of v(k) becomes the
+//! memory). Between instants a get answers for the inputs as they are then. A step reaching several instants
+//! commits the held inputs at each (for a held r and estimate, the same v), so any step size is accepted.
+//!
+//! Degenerate inputs (m1 or m2 not positive, a negative gap, crossing borders) are answered with the
+//! inverse's documented fallback; the get or step that meets them answers Warning with a log line under
+//! logStatusWarning, and the output `degenerate` is true.
+
+use super::backlash_compensator::{self as md, Var};
+use crate::compensate::{Answer, BacklashInverse};
+use crate::fmi::Model;
+use crate::fmi::vars::{Value, VarInfo};
+use crate::plant::BacklashParams;
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CompensatorFmu {
+    ts: f64,
+    smoothing: f64,
+    r: f64,
+    estimate: BacklashParams,
+    /// The inverse once initialised (before: an inverse at rest with the smoothing as set).
+    inverse: Option<BacklashInverse>,
+}
+
+impl CompensatorFmu {
+    /// The answer for the inputs as set, without committing.
+    fn answer(&self) -> Answer {
+        match &self.inverse {
+            Some(inv) => inv.evaluate(self.r, &self.estimate),
+            None => BacklashInverse::new(self.smoothing)
+                .unwrap_or_else(|_| BacklashInverse::exact())
+                .evaluate(self.r, &self.estimate),
+        }
+    }
+}
+
+impl Model for CompensatorFmu {
+    type Var = Var;
+    const MODEL_IDENTIFIER: &'static str = md::MODEL_IDENTIFIER;
+    const GUID: &'static str = md::GUID;
+    const LOG_CATEGORIES: &'static [&'static str] = md::LOG_CATEGORIES;
+    const VARIABLES: &'static [VarInfo] = &md::VARIABLES;
+    /// A sample is a few comparisons; the plant's bound on the work one step may hold the importer for.
+    const MAX_SAMPLES_PER_STEP: u64 = 1_000_000;
+
+    fn var(index: usize) -> Var {
+        Var::ALL[index]
+    }
+
+    fn new() -> Self {
+        Self {
+            ts: 1.0,
+            smoothing: 0.0,
+            r: 0.0,
+            estimate: BacklashParams {
+                m1: 1.0,
+                m2: 1.0,
+                c1: 0.0,
+                c2: 0.0,
+            },
+            inverse: None,
+        }
+    }
+
+    fn get(&self, var: Var) -> Value {
+        let e = &self.estimate;
+        match var {
+            Var::Ts => Value::Real(self.ts),
+            Var::R => Value::Real(self.r),
+            Var::M1 => Value::Real(e.m1),
+            Var::M2 => Value::Real(e.m2),
+            Var::C1 => Value::Real(e.c1),
+            Var::C2 => Value::Real(e.c2),
+            Var::Smoothing => Value::Real(self.smoothing),
+            Var::V => Value::Real(self.answer().v),
+            Var::W => Value::Real(self.answer().w),
+            Var::Degenerate => Value::Boolean(self.answer().degenerate.is_some()),
+        }
+    }
+
+    fn set(&mut self, var: Var, value: Value) {
+        let e = &mut self.estimate;
+        match var {
+            Var::Ts => self.ts = value.as_real(),
+            Var::R => self.r = value.as_real(),
+            Var::M1 => e.m1 = value.as_real(),
+            Var::M2 => e.m2 = value.as_real(),
+            Var::C1 => e.c1 = value.as_real(),
+            Var::C2 => e.c2 = value.as_real(),
+            Var::Smoothing => self.smoothing = value.as_real(),
+            // Outputs: the layer refuses to set them before calling here.
+            Var::V | Var::W | Var::Degenerate => {}
+        }
+    }
+
+    fn exit_initialization(&mut self) -> Result<(), String> {
+        let inv = BacklashInverse::new(self.smoothing).map_err(|e| e.to_string())?;
+        self.inverse = Some(inv);
+        Ok(())
+    }
+
+    fn sample_period(&self) -> f64 {
+        self.ts
+    }
+
+    fn step(&mut self, n: u64) -> Result<(), String> {
+        let inv = self.inverse.as_mut().ok_or(
+            "the compensator is not initialised (fmi2ExitInitializationMode was not called)",
+        )?;
+        for _ in 0..n {
+            inv.commit(self.r, &self.estimate);
+        }
+        Ok(())
+    }
+
+    fn warning(&self) -> Option<String> {
+        self.answer().degenerate.map(|d| d.to_string())
+    }
+
+    fn check_restored(&self) -> Result<(), String> {
+        let e = &self.estimate;
+        let ts_ok = self.ts.is_finite() && self.ts > 0.0;
+        let finite = [self.r, e.m1, e.m2, e.c1, e.c2, self.smoothing]
+            .iter()
+            .all(|x| x.is_finite());
+        if !ts_ok || !finite {
+            return Err("Ts, smoothing or an input is not valid".into());
+        }
+        match &self.inverse {
+            None => Ok(()),
+            Some(inv) if inv.smoothing() != self.smoothing => {
+                Err("the compensator's smoothing differs from the parameter smoothing".into())
+            }
+            Some(inv) => inv.check(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(r: f64, fmu: &mut CompensatorFmu) -> f64 {
+        fmu.set(Var::R, Value::Real(r));
+        let v = fmu.get(Var::V).as_real();
+        fmu.step(1).unwrap();
+        v
+    }
+
+    /// v depends directly on r; the step commits the direction memory (paper borders: up v = r + 0.5).
+    #[test]
+    fn v_follows_the_inputs_and_the_step_commits() {
+        let mut fmu = CompensatorFmu::new();
+        let p = BacklashParams::PAPER;
+        for (var, x) in [(Var::M2, p.m2), (Var::C1, p.c1), (Var::C2, p.c2)] {
+            fmu.set(var, Value::Real(x));
+        }
+        fmu.exit_initialization().unwrap();
+        assert_eq!(at(1.0, &mut fmu), 1.5);
+        // Held reference: v holds.
+        assert_eq!(at(1.0, &mut fmu), 1.5);
+        assert!((at(0.3, &mut fmu) - (0.3 / 1.5 - 1.0)).abs() < 1e-12);
+        assert_eq!(fmu.warning(), None);
+        fmu.set(Var::M2, Value::Real(-1.0));
+        assert_eq!(fmu.get(Var::Degenerate), Value::Boolean(true));
+        let w = fmu.warning().unwrap();
+        assert!(w.contains("m2 = -1 is not a positive number"), "{w}");
+        assert!(fmu.get(Var::V).as_real().is_finite());
+    }
+
+    #[test]
+    fn a_negative_smoothing_is_refused_at_initialisation() {
+        let mut fmu = CompensatorFmu::new();
+        fmu.smoothing = -1.0;
+        let e = fmu.exit_initialization().unwrap_err();
+        assert!(e.contains("smoothing width -1"), "{e}");
+    }
+}
