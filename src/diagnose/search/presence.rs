@@ -38,6 +38,9 @@ pub const MIN_ABSENT_REVERSALS: usize = 20;
 /// The widest play, as a share of the travel (1st to 99th percentile of the linear block's output on the
 /// fit part), that a record can show: a wider one is not a play.
 pub const MAX_PLAY_SHARE: f64 = 0.5;
+/// The narrowest play, as a share of the travel, that `present` claims: a smaller gap is within what a
+/// model's other imperfections buy (a spurious gap beside direction-dependent dynamics measured 1.7%).
+pub const MIN_PLAY_SHARE: f64 = 0.02;
 /// The widest bound, as a share of the travel, that says something.
 pub const MAX_BOUND_SHARE: f64 = 0.25;
 /// The halves agree when their plays differ by less than their combined 95% error plus this share of the
@@ -131,7 +134,13 @@ pub(crate) fn assess(p: &Problem, last: &EffectModel) -> BacklashSupport {
     let gains = twin.iter().all(|t| beats(&r, t));
     let mut play_free = twin.into_iter().collect::<Vec<_>>();
     if gains && !impossible {
-        play_free.extend(imitators(p, &r));
+        play_free.extend(imitators(p, &r, &r.model, "zero-gap"));
+        if !r.model.exts.is_empty() {
+            // The look-alikes alone, without the final model's other effects (friction, itself a play, would
+            // otherwise stay in every alternative).
+            let bare = EffectModel::plain(r.model.base.clone());
+            play_free.extend(imitators(p, &r, &bare, "zero-gap, no other effect"));
+        }
     }
     let reversals = [
         crossing_reversals(&r.sim.x[..p.n_fit], r.play.abs()),
@@ -302,9 +311,9 @@ fn play_free(p: &Problem, r: &Reading, start: &EffectModel, name: &str) -> Optio
     })
 }
 
-/// The zero-gap model with each play-free effect of the catalogue that imitates play added (those the
-/// final model lacks and can take), fitted from the effect's own starts.
-fn imitators(p: &Problem, r: &Reading) -> Vec<PlayFree> {
+/// The zero-gap model of `current` with each play-free effect of the catalogue that imitates play added
+/// (those `current` lacks and can take), fitted from the effect's own starts; named `<name> + <effect>`.
+fn imitators(p: &Problem, r: &Reading, current: &EffectModel, name: &str) -> Vec<PlayFree> {
     use rayon::prelude::*;
     let residual: Vec<f64> = p.y[..p.n_fit]
         .iter()
@@ -319,7 +328,7 @@ fn imitators(p: &Problem, r: &Reading) -> Vec<PlayFree> {
         });
     let no_mrgia = |_: usize, _: usize, _: usize| None;
     let cx = StartContext {
-        current: &r.model,
+        current,
         u: &p.u[..p.n_fit],
         y: y_fit,
         residual: &residual,
@@ -332,7 +341,7 @@ fn imitators(p: &Problem, r: &Reading) -> Vec<PlayFree> {
     let effects: Vec<&'static dyn Effect> = CATALOGUE
         .iter()
         .copied()
-        .filter(|e| e.imitates_play() && r.model.can_add(e.id()))
+        .filter(|e| e.imitates_play() && current.can_add(e.id()))
         .collect();
     effects
         .par_iter()
@@ -343,7 +352,7 @@ fn imitators(p: &Problem, r: &Reading) -> Vec<PlayFree> {
                 .filter(|alt| alt.template.deterministic() == alt.template)
                 .filter_map(|alt| {
                     let start = alt.starts.first()?;
-                    play_free(p, r, start, &format!("zero-gap + {}", e.id()))
+                    play_free(p, r, start, &format!("{name} + {}", e.id()))
                 })
                 .min_by(|a, b| a.heldout_rmse.total_cmp(&b.heldout_rmse))
         })
@@ -414,15 +423,6 @@ fn g(v: f64) -> String {
     }
 }
 
-/// The first input level's rest rule for a slice starting at sample `k` of `p`.
-fn rest_at(p: &Problem, k: usize) -> Rest {
-    if p.rest == Rest::ZERO {
-        Rest::ZERO
-    } else {
-        Rest(p.u[k])
-    }
-}
-
 impl Context<'_, '_> {
     /// The three answers' conditions; every condition checked says why in `reasons` (the halves are
     /// refitted only where everything else says present).
@@ -477,7 +477,7 @@ impl Context<'_, '_> {
             ),
             (
                 significant && gains && crossed && !impossible,
-                "the two halves of the fit part disagree on the play".into(),
+                "the two halves of the fit part do not confirm the play (see the reasons)".into(),
             ),
         ]
         .into_iter()
@@ -504,13 +504,24 @@ impl Context<'_, '_> {
         true
     }
 
-    /// Whether the play is significantly above zero, in words.
+    /// Whether the play is significantly above zero and at least [`MIN_PLAY_SHARE`] of the travel, in
+    /// words.
     fn significant(&self, reasons: &mut Vec<String>) -> bool {
         let r = self.r;
         let Some(se) = r.se else {
             reasons.push("the record does not determine the gaps (no standard error)".into());
             return false;
         };
+        if r.play > 0.0 && r.play < MIN_PLAY_SHARE * r.travel {
+            reasons.push(format!(
+                "the play {} is below {:.0}% of the travel {}: too narrow to tell from what the model's other \
+                 imperfections buy",
+                g(r.play),
+                100.0 * MIN_PLAY_SHARE,
+                g(r.travel)
+            ));
+            return false;
+        }
         let yes = r.play > residual::Z95 * se;
         reasons.push(format!(
             "the play {} +/- {} is {}significantly above zero ({:.1} standard errors; the standard error \
@@ -570,7 +581,9 @@ impl Context<'_, '_> {
         let h = p.n_fit / 2;
         let first = p.shortened(h);
         let mut second = Problem::new(&p.u[h..], &p.y[h..], p.n_fit - h, p.lm);
-        second.rest = rest_at(p, h);
+        // Mid-record the model is in motion: it starts at rest at the half's first input, the nearest state
+        // a fresh start has.
+        second.rest = Rest(p.u[h]);
         second.x_scale = p.x_scale;
         let m = &self.r.model;
         let play = |q: &Problem| {
@@ -584,9 +597,18 @@ impl Context<'_, '_> {
     /// Whether the halves' plays agree (see [`HALF_TOLERANCE`]), in words.
     fn halves_agree(&self, halves: Option<[(f64, f64); 2]>, reasons: &mut Vec<String>) -> bool {
         let Some([(a, sa), (b, sb)]) = halves else {
-            reasons.push("the halves of the fit part could not be fitted on their own".into());
+            reasons.push("the halves of the fit part could not be refitted on their own".into());
             return false;
         };
+        if !(sa.is_finite() && sb.is_finite()) {
+            reasons.push(format!(
+                "the halves of the fit part give plays {} and {} that neither half determines (no standard \
+                 error): their agreement says nothing",
+                g(a),
+                g(b)
+            ));
+            return false;
+        }
         let allowed = residual::Z95 * sa.hypot(sb) + HALF_TOLERANCE * a.abs().max(b.abs());
         let agree = (a - b).abs() <= allowed;
         reasons.push(format!(
