@@ -53,6 +53,9 @@ struct Cli {
     /// One line per record (CSV).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// A folder for each diagnosis's JSON (CLASS-SNR-SEED.json).
+    #[arg(long)]
+    json: Option<PathBuf>,
 }
 
 /// The noise levels, in dB (20 log10 of std(noise-free output) / noise std).
@@ -156,7 +159,7 @@ fn main() -> Result<()> {
         let t = Instant::now();
         let out: Vec<Row> = (0..cli.records)
             .into_par_iter()
-            .flat_map_iter(|i| record_rows(class, i as u64, cli.samples))
+            .flat_map_iter(|i| record_rows(class, i as u64, cli.samples, cli.json.as_deref()))
             .collect();
         let present = out
             .iter()
@@ -191,11 +194,13 @@ struct Row {
     presence: Presence,
     truth: Option<Truth>,
     b: BacklashSupport,
+    /// The effects the diagnosis named, in order.
+    effects: String,
     what: String,
 }
 
 /// The record `i` of `class` at both noise levels (the same noise-free record), diagnosed.
-fn record_rows(class: Class, i: u64, n: usize) -> Vec<Row> {
+fn record_rows(class: Class, i: u64, n: usize, json: Option<&std::path::Path>) -> Vec<Row> {
     let seed = 1000 * (CLASSES.iter().position(|c| *c == class).unwrap_or(0) as u64) + i;
     let open = (class != Class::PlayLoop)
         .then(|| simulate(class, &mut Draw(ChaCha8Rng::seed_from_u64(seed)), n, seed));
@@ -208,23 +213,41 @@ fn record_rows(class: Class, i: u64, n: usize) -> Vec<Row> {
                 None => {
                     let mut d = Draw(ChaCha8Rng::seed_from_u64(seed));
                     let (sim, y) = play_loop(&mut d, n, snr, seed ^ db.to_bits());
-                    return row(class, db, seed, &sim, &y);
+                    return row(class, db, seed, &sim, &y, json);
                 }
             };
-            row(class, db, seed, sim, &y)
+            row(class, db, seed, sim, &y, json)
         })
         .collect()
 }
 
 /// The diagnosis of one noisy record.
-fn row(class: Class, db: f64, seed: u64, sim: &Sim, y: &[f64]) -> Row {
+fn row(
+    class: Class,
+    db: f64,
+    seed: u64,
+    sim: &Sim,
+    y: &[f64],
+    json: Option<&std::path::Path>,
+) -> Row {
     let diag = diagnose(&sim.u, y, &DiagnoseConfig::auto()).expect("the record is valid");
+    if let Some(dir) = json {
+        let path = dir.join(format!("{}-{db:.0}-{seed}.json", class.name()));
+        let text = serde_json::to_string_pretty(&diag.to_json(None)).expect("JSON");
+        std::fs::write(&path, text).unwrap_or_else(|e| panic!("writing {}: {e}", path.display()));
+    }
     Row {
         class,
         snr_db: db,
         seed,
         presence: diag.backlash.presence,
         truth: sim.truth,
+        effects: diag
+            .steps()
+            .iter()
+            .map(|c| c.id.to_string())
+            .collect::<Vec<_>>()
+            .join(" + "),
         b: diag.backlash,
         what: sim.what.clone(),
     }
@@ -325,6 +348,10 @@ fn simulate(class: Class, d: &mut Draw, n: usize, seed: u64) -> Sim {
         .iter()
         .map(|o| o.x)
         .collect();
+    let block = format!(
+        "a {:.3} {:.3}, b0 {:.3}, delay {}",
+        arx.a[0], arx.a[1], arx.b[0], arx.delay
+    );
     let (f, truth, what) = match class {
         Class::Play | Class::PlayFriction => with_play(class, d, arx, &u, &x),
         Class::Saturation | Class::DeadZone | Class::RiseFall => {
@@ -345,6 +372,11 @@ fn simulate(class: Class, d: &mut Draw, n: usize, seed: u64) -> Sim {
         Class::Curve => curve(d, &x),
         Class::SecondInput => second_input(d, &x),
         Class::PlayLoop => unreachable!("the loop is simulated with its noise"),
+    };
+    let what = if class == Class::Tanks {
+        what
+    } else {
+        format!("{block}; {what}")
     };
     Sim { u, f, truth, what }
 }
@@ -604,7 +636,14 @@ fn play_loop(d: &mut Draw, n: usize, snr: f64, seed: u64) -> (Sim, Vec<f64>) {
         share,
         crossings: reversals(&w),
     };
-    let what = format!("play {:.1}% of the travel, Kp {kp:.3}", 100.0 * share);
+    let what = format!(
+        "a {:.3} {:.3}, b0 {:.3}, delay {}; play {:.1}% of the travel, Kp {kp:.3}",
+        arx.a[0],
+        arx.a[1],
+        arx.b[0],
+        arx.delay,
+        100.0 * share
+    );
     let sim = Sim {
         u,
         f,
@@ -728,13 +767,13 @@ fn write_csv(path: &std::path::Path, rows: &[Row]) -> std::io::Result<()> {
     writeln!(
         f,
         "class,snr_db,seed,true_share,true_crossings,presence,play,play_se,play_bound,reversals_fit,\
-         reversals_heldout,travel,undecided_by,reasons,record"
+         reversals_heldout,travel,effects,undecided_by,reasons,record"
     )?;
     let opt = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.6}"));
     for r in rows {
         writeln!(
             f,
-            "{},{},{},{},{},{:?},{:.6},{},{},{},{},{:.6},{},{},{}",
+            "{},{},{},{},{},{:?},{:.6},{},{},{},{},{:.6},{},{},{},{}",
             r.class.name(),
             r.snr_db,
             r.seed,
@@ -747,6 +786,7 @@ fn write_csv(path: &std::path::Path, rows: &[Row]) -> std::io::Result<()> {
             r.b.reversals[0],
             r.b.reversals[1],
             r.b.travel,
+            field(&r.effects),
             field(&r.b.undecided_by.join("; ")),
             field(&r.b.reasons.join(" | ")),
             field(&r.what),
