@@ -284,6 +284,8 @@ pub struct OeRun {
     pub seconds: f64,
     /// What the input can tell.
     pub check: InputCheck,
+    /// The output's standard deviation over the record: the RMSE of predicting its mean.
+    pub output_std: f64,
 }
 
 /// The output-error fit of `identify oe`: the structure (declared or chosen), the fit, the bound.
@@ -330,6 +332,7 @@ pub fn identify_oe_with_progress(
         bound,
         seconds,
         check: InputCheck::of(u),
+        output_std: crate::stats::std_dev(y),
     })
 }
 
@@ -404,6 +407,8 @@ impl OeRun {
             "std_err": f.std_err,
             "sigma": f.sigma,
             "rmse": f.rmse,
+            "constant_rmse": self.output_std,
+            "fit_percent": 100.0 * (1.0 - f.rmse / self.output_std),
             "cost": f.cost,
             "iterations": f.iterations,
             "converged": f.converged,

@@ -685,10 +685,13 @@ fn a_closed_reader_is_no_panic_for_any_command() {
     for args in runs {
         for stderr_too in [false, true] {
             let (code, stderr) = closed_reader(&args, stderr_too);
-            assert_eq!(
-                (code, stderr.as_str()),
-                (Some(0), ""),
-                "{args:?} (stderr into the pipe too: {stderr_too})"
+            // An answer, or a refusal in one line of words (this record does not excite every parameter of
+            // every structure): never a panic or a broken pipe's noise.
+            let refused =
+                code == Some(1) && stderr.starts_with("error: ") && stderr.lines().count() == 1;
+            assert!(
+                (code == Some(0) && stderr.is_empty()) || refused,
+                "{args:?} (stderr into the pipe too: {stderr_too}): {code:?} {stderr}"
             );
         }
     }

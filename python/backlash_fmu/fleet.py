@@ -29,11 +29,12 @@ import time
 from . import _progress
 from ._csv import cell
 
-COLUMNS = ("file", "na", "nb", "delay", "effects", "before_rmse", "after_rmse", "linear_rmse", "seconds",
-           "error")
+COLUMNS = ("file", "na", "nb", "delay", "effects", "before_rmse", "after_rmse", "linear_rmse", "fit_percent",
+           "constant_rmse", "presence", "play", "play_se", "seconds", "error")
 TYPES = {"file": "string", "na": "int64", "nb": "int64", "delay": "int64", "effects": "string",
-         "before_rmse": "float64", "after_rmse": "float64", "linear_rmse": "float64", "seconds": "float64",
-         "error": "string"}
+         "before_rmse": "float64", "after_rmse": "float64", "linear_rmse": "float64", "fit_percent": "float64",
+         "constant_rmse": "float64", "presence": "string", "play": "float64", "play_se": "float64",
+         "seconds": "float64", "error": "string"}
 
 
 def _diagnose_args(path):
@@ -49,6 +50,11 @@ def _diagnose_row(answer):
         "before_rmse": answer["before"]["rmse"],
         "after_rmse": answer["after"]["rmse"],
         "linear_rmse": answer["linear"]["rmse"],
+        "fit_percent": answer["fit_percent"],
+        "constant_rmse": answer["constant_rmse"],
+        "presence": answer["backlash"]["presence"],
+        "play": answer["backlash"]["play"],
+        "play_se": answer["backlash"]["play_se"],
     }
 
 

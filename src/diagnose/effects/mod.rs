@@ -135,6 +135,9 @@ pub struct Fitted<'a> {
     pub current: &'a crate::diagnose::fit::model::EffectModel,
     pub n: usize,
     pub ts: Option<f64>,
+    /// The output level the fits worked about: levels in the output's units (saturation limits, a
+    /// lattice's offset) are reported with it added back, where the record puts them.
+    pub output_level: f64,
 }
 
 impl Fitted<'_> {

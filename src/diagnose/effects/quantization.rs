@@ -91,7 +91,11 @@ impl Effect for Quantization {
         f.own(ID, |ext| {
             Parameters::new()
                 .with("step", ext.fixed[0])
-                .with("offset", ext.fixed[1])
+                .with("offset", {
+                    // Where the record's own values sit on the lattice, within half a step of 0.
+                    let (q, o) = (ext.fixed[0], ext.fixed[1] + f.output_level);
+                    o - q * (o / q).round()
+                })
                 .with("noise_before_rounding", ext.theta[0])
         })
     }

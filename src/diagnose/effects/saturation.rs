@@ -132,8 +132,8 @@ impl Effect for Saturation {
                 _ => "both",
             };
             Parameters::new()
-                .with_some("lo", (lo > f64::MIN).then_some(lo))
-                .with_some("hi", (hi < f64::MAX).then_some(hi))
+                .with_some("lo", (lo > f64::MIN).then_some(lo + f.output_level))
+                .with_some("hi", (hi < f64::MAX).then_some(hi + f.output_level))
                 .with("limits", side)
         })
     }

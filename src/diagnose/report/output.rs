@@ -18,12 +18,14 @@ pub fn parameters_of(
     current: &EffectModel,
     n: usize,
     ts: Option<f64>,
+    output_level: f64,
 ) -> Parameters {
     id.effect().parameters(&Fitted {
         model: m,
         current,
         n,
         ts,
+        output_level,
     })
 }
 
@@ -229,7 +231,7 @@ impl<'a> DiagnosisOut<'a> {
             candidates: d
                 .candidates
                 .iter()
-                .map(|c| candidate_out(c, &d.base, d.n, ts))
+                .map(|c| candidate_out(c, &d.base, d.n, (ts, d.operating_point.y)))
                 .collect(),
             not_tried: &d.not_tried,
             decision: DECISION_RULE,
@@ -247,7 +249,8 @@ impl<'a> DiagnosisOut<'a> {
 impl<'a> Effect<'a> {
     /// The first effect kept, or the `null` object.
     fn of(d: &'a Diagnosis, ts: Option<f64>) -> Self {
-        let params = |c: &Candidate| parameters_of(c.id, &c.model, &d.base, d.n, ts);
+        let params =
+            |c: &Candidate| parameters_of(c.id, &c.model, &d.base, d.n, ts, d.operating_point.y);
         match d.effect() {
             Some(c) => Effect {
                 id: Some(c.id),
@@ -292,7 +295,7 @@ fn steps_of(d: &Diagnosis, ts: Option<f64>) -> Vec<Step<'_>> {
         .zip(currents.iter().zip(&befores))
         .map(|(c, (cur, &before_rmse))| Step {
             id: c.id,
-            parameters: parameters_of(c.id, &c.model, cur, d.n, ts),
+            parameters: parameters_of(c.id, &c.model, cur, d.n, ts, d.operating_point.y),
             pointed_by: c.pointed_by.first().copied(),
             after_rmse: c.heldout_rmse,
             before_rmse,
@@ -329,7 +332,7 @@ fn rounds_of(d: &Diagnosis, ts: Option<f64>) -> Vec<RoundOut<'_>> {
                 .found
                 .candidates
                 .iter()
-                .map(|c| candidate_out(c, &r.current, d.n, ts))
+                .map(|c| candidate_out(c, &r.current, d.n, (ts, d.operating_point.y)))
                 .collect(),
             not_tried: &r.found.not_tried,
             chosen: r.found.chosen.map(|i| r.found.candidates[i].id),
@@ -342,12 +345,12 @@ fn candidate_out<'a>(
     c: &'a Candidate,
     current: &EffectModel,
     n: usize,
-    ts: Option<f64>,
+    (ts, output_level): (Option<f64>, f64),
 ) -> CandidateOut<'a> {
     CandidateOut {
         id: c.id,
         pointed_by: &c.pointed_by,
-        parameters: parameters_of(c.id, &c.model, current, n, ts),
+        parameters: parameters_of(c.id, &c.model, current, n, ts, output_level),
         k: c.k,
         fit_rmse: c.fit_rmse,
         heldout_rmse: c.heldout_rmse,
@@ -394,6 +397,7 @@ mod tests {
                 &current,
                 100,
                 None,
+                0.0,
             );
             (p.get("added").cloned(), number(&p, "value"))
         };
@@ -408,7 +412,7 @@ mod tests {
         let omega = std::f64::consts::PI / 10.0;
         let m = EffectModel::plain(paper_base()).with(periodic::extension(omega, 3.0, 4.0));
         let current = EffectModel::plain(paper_base());
-        let of = |ts| parameters_of(periodic::ID, &m, &current, 100, ts);
+        let of = |ts| parameters_of(periodic::ID, &m, &current, 100, ts, 0.0);
         let p = of(Some(0.02));
         assert_eq!(number(&p, "omega"), omega);
         assert!((number(&p, "period_samples") - 20.0).abs() < 1e-12);
@@ -434,7 +438,7 @@ mod tests {
         let (c1, c2) = (base.c1, base.c2);
         let m = EffectModel::plain(base).with(gap_drift::extension(1e-3, -2e-3));
         let current = EffectModel::plain(paper_base());
-        let p = parameters_of(gap_drift::ID, &m, &current, 101, Some(0.01));
+        let p = parameters_of(gap_drift::ID, &m, &current, 101, Some(0.01), 0.0);
         assert_eq!((number(&p, "c1_start"), number(&p, "c2_start")), (c1, c2));
         assert!((number(&p, "c1_end") - (c1 + 0.1)).abs() < 1e-12);
         assert!((number(&p, "c2_end") - (c2 - 0.2)).abs() < 1e-12);

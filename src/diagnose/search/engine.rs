@@ -129,6 +129,7 @@ pub fn diagnose_with_progress(
     };
     d.explained = explained;
     d.operating_point = op;
+    d.initial.input += op.u;
     d.restore_outputs();
     Ok(d)
 }
