@@ -773,13 +773,7 @@ impl StateApi for Forged {
     }
 
     fn reals(&self) -> Vec<f64> {
-        let vrs: Vec<u32> = self
-            .1
-            .variables()
-            .iter()
-            .filter(|v| v.ty == VarType::Real)
-            .map(|v| v.vr)
-            .collect();
+        let vrs = self.1.all_of(VarType::Real);
         let mut x = vec![f64::NAN; vrs.len()];
         let st =
             unsafe { fmi3GetFloat64(self.0.c, vrs.as_ptr(), vrs.len(), x.as_mut_ptr(), x.len()) };

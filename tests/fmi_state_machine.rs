@@ -238,13 +238,7 @@ impl StateApi for Fmu {
     }
 
     fn reals(&self) -> Vec<f64> {
-        let vrs: Vec<u32> = self
-            .kind
-            .variables()
-            .iter()
-            .filter(|v| v.ty == VarType::Real)
-            .map(|v| v.vr)
-            .collect();
+        let vrs = self.kind.all_of(VarType::Real);
         let (s, values) = self.get_real(&vrs);
         ok(s, "fmi2GetReal of every Real");
         values

@@ -402,6 +402,8 @@ mod tests {
         assert_eq!(field_at(one, 1, 2), None);
         let two = b"{\"a\":1,\n\"c\":nul}";
         assert_eq!(field_at(two, 2, 6), Some("c"));
+        // Column 4 is the colon after "c": a line start one or two bytes early would stop at "a".
+        assert_eq!(field_at(two, 2, 4), Some("c"));
         assert_eq!(field_at(two, 9, 1), None);
         let e = serde_json::from_slice::<serde_json::Value>(one).unwrap_err();
         assert!(corrupted(one, &e).ends_with("stopped in field 'b')"), "{e}");
