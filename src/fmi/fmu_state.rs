@@ -381,10 +381,19 @@ mod tests {
     #[test]
     fn check_header_refuses_another_format_or_fmu() {
         let head = |format: &str, guid: &str| format!(r#"{{"format":"{format}","guid":"{guid}"}}"#);
-        assert_eq!(check_header(head(STATE_FORMAT, "g").as_bytes(), "g", "M"), Ok(()));
+        assert_eq!(
+            check_header(head(STATE_FORMAT, "g").as_bytes(), "g", "M"),
+            Ok(())
+        );
         for (bytes, names) in [
-            (head("backlash-fmu-state/1", "g"), "format 'backlash-fmu-state/1'"),
-            (head(STATE_FORMAT, "h"), "another FMU (GUID h), not to M (GUID g)"),
+            (
+                head("backlash-fmu-state/1", "g"),
+                "format 'backlash-fmu-state/1'",
+            ),
+            (
+                head(STATE_FORMAT, "h"),
+                "another FMU (GUID h), not to M (GUID g)",
+            ),
             (r#"{"format":"#.to_string(), "truncated or corrupted"),
             (String::new(), "truncated or corrupted"),
         ] {
