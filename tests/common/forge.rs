@@ -158,6 +158,7 @@ impl Forger {
         // Entry (1, 0) changed, (0, 1) not.
         self.shift(&format!("{p}/1"), 0.5, "covariance P is not symmetric");
         self.raw(&self.at("sigma"), "-1.0", "sigma");
+        self.raw(&self.at("sigma"), "0.0", "sigma");
         let samples = format!("{}/samples", self.at("core").rsplit_once('/').unwrap().0);
         self.shift(&samples, 1.0, "samples");
         let cfg = format!("{}/c_init", self.at("cfg"));
