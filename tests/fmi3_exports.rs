@@ -30,6 +30,7 @@ use backlash::fmi3::exports::*;
 use backlash::fmi3::ffi::*;
 use backlash::fmi3::state::Call;
 use common::Kind;
+use common::forge::{StateApi, forged_states_are_refused};
 use std::ffi::{CStr, CString, c_char, c_void};
 use std::ptr::{null, null_mut};
 use std::sync::Mutex;
@@ -712,6 +713,82 @@ fn fmi3_and_fmi2_exports_give_the_same_bits() {
             }
             assert_eq!(three, two, "{kind:?}, {steps} steps per sample");
         }
+    }
+}
+
+// ------------------------------------------------------------------------------------- forged FMU states
+
+/// An instance with the FMU it is of, for the forged-state check of tests/common/forge.rs.
+struct Forged(Fmu, Kind);
+
+impl StateApi for Forged {
+    fn running(kind: Kind, name: &str) -> Forged {
+        let f = Fmu::new(kind, name);
+        f.drive(State::StepComplete);
+        assert_eq!(unsafe { fmi3SetFloat64(f.c, &kind.vr("u"), 1, &0.7, 1) }, 0);
+        let mut f = Forged(f, kind);
+        assert_eq!(f.step(0.0, 1.0), 0);
+        f
+    }
+
+    fn save(&mut self) -> Vec<u8> {
+        let c = self.0.c;
+        let mut s = null_mut();
+        unsafe {
+            assert_eq!(fmi3GetFMUState(c, &mut s), 0);
+            let mut size = 0usize;
+            assert_eq!(fmi3SerializedFMUStateSize(c, s, &mut size), 0);
+            let mut buf = vec![0u8; size];
+            assert_eq!(fmi3SerializeFMUState(c, s, buf.as_mut_ptr(), size), 0);
+            assert_eq!(fmi3FreeFMUState(c, &mut s), 0);
+            buf
+        }
+    }
+
+    fn deserialize(&mut self, bytes: &[u8]) -> (u32, String) {
+        let mut s = null_mut();
+        let st = unsafe { fmi3DeserializeFMUState(self.0.c, bytes.as_ptr(), bytes.len(), &mut s) };
+        if st == 0 {
+            assert_eq!(unsafe { fmi3FreeFMUState(self.0.c, &mut s) }, 0);
+        }
+        (st, self.0.last_log().map(|(_, _, m)| m).unwrap_or_default())
+    }
+
+    fn restore(&mut self, bytes: &[u8]) {
+        let c = self.0.c;
+        let mut s = null_mut();
+        unsafe {
+            assert_eq!(
+                fmi3DeserializeFMUState(c, bytes.as_ptr(), bytes.len(), &mut s),
+                0
+            );
+            assert_eq!(fmi3SetFMUState(c, s), 0);
+            assert_eq!(fmi3FreeFMUState(c, &mut s), 0);
+        }
+    }
+
+    fn step(&mut self, t: f64, h: f64) -> u32 {
+        let (mut e, mut term, mut early, mut last) = (0u8, 0u8, 0u8, 0.0);
+        unsafe { fmi3DoStep(self.0.c, t, h, 1, &mut e, &mut term, &mut early, &mut last) }
+    }
+
+    fn reals(&self) -> Vec<f64> {
+        let vrs = self.1.all_of(VarType::Real);
+        let mut x = vec![f64::NAN; vrs.len()];
+        let st =
+            unsafe { fmi3GetFloat64(self.0.c, vrs.as_ptr(), vrs.len(), x.as_mut_ptr(), x.len()) };
+        assert_eq!(st, 0);
+        x
+    }
+}
+
+/// A real FMU state with one field forged at a time (tests/common/forge.rs): each is refused with fmi3Error
+/// and a log line naming the field; the instance keeps its state and, restored, steps like its twin.
+#[test]
+fn every_forged_field_of_a_state_is_refused_by_name() {
+    for kind in Kind::ALL {
+        let failures = forged_states_are_refused::<Forged>(kind);
+        assert!(failures.is_empty(), "{}", failures.join("\n"));
     }
 }
 

@@ -39,6 +39,10 @@ pub trait Model: Serialize + DeserializeOwned + Send + 'static {
     fn warning(&self) -> Option<String> {
         None
     }
+
+    /// Samples the model has processed since initialization mode was left; None before (not initialised).
+    /// A restored state's count must be the layer's.
+    fn samples(&self) -> Option<u64>;
     /// Consistency of a model restored from an FMU state (which may come from outside: a file, another
     /// process). `Err` names what is wrong; the state is then refused.
     fn check_restored(&self) -> Result<(), String>;

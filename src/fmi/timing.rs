@@ -149,7 +149,8 @@ impl LayerState {
     }
 
     /// The clock and the sample count agree as a step leaves them: the clock stands at or after instant t_k
-    /// (within the time tolerance) and before t_{k+1}, which any step ending there would have reached.
+    /// (within the time tolerance) and before t_{k+1}, which any step ending there would have reached; and
+    /// not after the stop time (a step may not end there).
     pub fn check_clock(&self, ts: f64) -> Result<(), String> {
         let since = self.time - self.start_time;
         let (k, next) = (
@@ -158,9 +159,18 @@ impl LayerState {
         );
         if since < k - time_tolerance(self.start_time + k, ts) || since >= next {
             return Err(format!(
-                "the FMU state is inconsistent: its clock {} is not between sample instant {} and the next \
-                 one (start time {}, Ts = {ts})",
+                "the FMU state is inconsistent: its time {} is not between sample instant {} (samples) and \
+                 the next one (start_time {}, Ts = {ts})",
                 self.time, self.samples, self.start_time
+            ));
+        }
+        // A step may end at most the time tolerance after the stop time (`step_end`).
+        if let Some(stop) = self.stop_time
+            && self.time > stop + time_tolerance(stop, ts)
+        {
+            return Err(format!(
+                "the FMU state is inconsistent: its time {} lies after its stop_time {stop}",
+                self.time
             ));
         }
         Ok(())

@@ -25,6 +25,9 @@ pub struct CompensatorFmu {
     estimate: BacklashParams,
     /// The inverse once initialised (before: an inverse at rest with the smoothing as set).
     inverse: Option<BacklashInverse>,
+    /// Samples committed since initialization mode was left.
+    #[serde(default)]
+    committed: u64,
 }
 
 impl CompensatorFmu {
@@ -64,6 +67,7 @@ impl Model for CompensatorFmu {
                 c2: 0.0,
             },
             inverse: None,
+            committed: 0,
         }
     }
 
@@ -115,7 +119,12 @@ impl Model for CompensatorFmu {
         for _ in 0..n {
             inv.commit(self.r, &self.estimate);
         }
+        self.committed += n;
         Ok(())
+    }
+
+    fn samples(&self) -> Option<u64> {
+        self.inverse.as_ref().map(|_| self.committed)
     }
 
     fn warning(&self) -> Option<String> {

@@ -345,6 +345,10 @@ impl Model for EstimatorFmu {
         self.ts
     }
 
+    fn samples(&self) -> Option<u64> {
+        self.est.as_ref().map(Running::samples)
+    }
+
     fn check_restored(&self) -> Result<(), String> {
         let ts_ok = self.ts.is_finite() && self.ts > 0.0;
         if !ts_ok || !self.u.is_finite() || !self.y.is_finite() {
@@ -368,6 +372,14 @@ impl Model for EstimatorFmu {
                 {
                     return Err(
                         "the estimator's orders differ from the parameters na, nb, delay".into(),
+                    );
+                }
+                // The running estimator's settings are those its parameters give (none is tunable).
+                if *c != self.config()? {
+                    return Err(
+                        "the estimator's settings (c_init, p0, sigma0, ...) differ from the \
+                         FMU's parameters"
+                            .into(),
                     );
                 }
                 Ok(())

@@ -492,6 +492,10 @@ impl Model for PlantFmu {
         self.ts
     }
 
+    fn samples(&self) -> Option<u64> {
+        self.plant.as_ref().map(Plant::sample)
+    }
+
     fn check_restored(&self) -> Result<(), String> {
         let ts_ok = self.ts.is_finite() && self.ts > 0.0;
         if !ts_ok || !self.u.is_finite() {
@@ -500,7 +504,19 @@ impl Model for PlantFmu {
         match &self.plant {
             // Not initialised yet: parameters are checked at fmi2ExitInitializationMode.
             None => Ok(()),
-            Some(p) => p.check(),
+            Some(p) => {
+                p.check()?;
+                // The running plant's parameters are those its FMU's parameters build (set_gap keeps the
+                // tunable gaps in step), or the getters would report another plant than the one running.
+                if self.build()?.params() != p.params() {
+                    return Err(
+                        "the plant's parameters (the gaps c1, c2, the ARX block, m, the noise) \
+                         differ from the FMU's parameters"
+                            .into(),
+                    );
+                }
+                Ok(())
+            }
         }
     }
 

@@ -363,15 +363,33 @@ impl TryFrom<MrgiaState> for Mrgia {
         if s.u_hist.buf.len() != U_RING || s.u_hist.head >= U_RING {
             return Err("MRGIA state: malformed input history".into());
         }
-        let finite = s.core.theta().iter().all(|v| v.is_finite())
-            && s.core.p_rows().iter().all(|v| v.is_finite())
-            && s.u_hist.buf.iter().all(|v| v.is_finite())
-            && s.x_hist.iter().all(|v| v.is_finite())
-            && [s.y_prev, s.u_max, s.y_max, s.last.y_hat, s.last.e]
-                .iter()
-                .all(|v| v.is_finite());
-        if !(finite && s.sigma > 0.0 && s.sigma.is_finite()) {
-            return Err("MRGIA state: non-finite values".into());
+        let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        let p = s.core.p_rows();
+        let n = s.core.theta().len();
+        let symmetric = (0..n).all(|i| (0..i).all(|j| p[i * n + j] == p[j * n + i]));
+        let bad = [
+            ("the estimates theta are not finite", finite(s.core.theta())),
+            ("the covariance P is not finite", finite(&p)),
+            // The update symmetrises P exactly ((B + B^T) / 2 commutes).
+            ("the covariance P is not symmetric", symmetric),
+            ("the input history is not finite", finite(&s.u_hist.buf)),
+            (
+                "the auxiliary model's history x^ is not finite",
+                finite(&s.x_hist),
+            ),
+            (
+                "y_prev, u_max, y_max or the last step is not finite",
+                finite(&[s.y_prev, s.u_max, s.y_max, s.last.y_hat, s.last.e]),
+            ),
+            (
+                "the noise estimate sigma is not positive and finite",
+                s.sigma > 0.0 && s.sigma.is_finite(),
+            ),
+        ]
+        .into_iter()
+        .find(|(_, ok)| !ok);
+        if let Some((what, _)) = bad {
+            return Err(format!("MRGIA state: {what}"));
         }
         Ok(Self {
             cfg: s.cfg,

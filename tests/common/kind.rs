@@ -60,6 +60,15 @@ impl Kind {
             .collect()
     }
 
+    /// The value references of every variable of type `ty`, in table order.
+    pub fn all_of(self, ty: VarType) -> Vec<u32> {
+        self.variables()
+            .iter()
+            .filter(|v| v.ty == ty)
+            .map(|v| v.vr)
+            .collect()
+    }
+
     /// Whether a variable of type `ty` has the value reference `vr`.
     pub fn known(self, ty: VarType, vr: u32) -> bool {
         self.variables().iter().any(|v| v.vr == vr && v.ty == ty)

@@ -9,6 +9,7 @@
 //! format holds a conversion, which would read an argument that is not there.
 #![allow(dead_code, reason = "each test crate uses only some of these helpers")]
 
+pub mod forge;
 mod kind;
 
 pub use kind::Kind;

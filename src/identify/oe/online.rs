@@ -386,6 +386,14 @@ impl OnlineEstimator {
         })
     }
 
+    /// Samples processed (non-finite samples are not counted).
+    pub fn samples(&self) -> u64 {
+        match self {
+            Self::Plain(m) => m.samples(),
+            Self::Refined(r) => r.samples(),
+        }
+    }
+
     /// Whether this is the `refine` kind.
     pub fn refining_kind(&self) -> bool {
         matches!(self, Self::Refined(_))
