@@ -43,7 +43,7 @@ impl Element for CurvedBorders {
     }
 
     /// Without a gap both borders are one curve: the lower border's terms are the upper's.
-    fn zero_gap_ties(&self, _ext: &Extension) -> Option<Vec<(usize, usize, f64)>> {
+    fn zero_gap_ties(&self, _ext: &Extension) -> Option<crate::diagnose::fit::model::Ties> {
         Some(vec![(2, 0, 1.0), (3, 1, 1.0)])
     }
 

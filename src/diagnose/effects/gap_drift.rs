@@ -41,7 +41,7 @@ impl Element for GapDrift {
 
     /// Without a gap the gaps drift oppositely (c2's rate is minus c1's): the one curve's level drifts, as
     /// a slowly moving operating point does, and the gap stays zero.
-    fn zero_gap_ties(&self, _ext: &Extension) -> Option<Vec<(usize, usize, f64)>> {
+    fn zero_gap_ties(&self, _ext: &Extension) -> Option<crate::diagnose::fit::model::Ties> {
         Some(vec![(1, 0, -1.0)])
     }
 

@@ -443,7 +443,7 @@ fn hac_lags(r: &[f64]) -> usize {
     let n = r.len();
     let nf = n as f64;
     let floor = (4.0 * (nf / 100.0).powf(2.0 / 9.0)).floor() as usize;
-    let cap = ((MAX_HAC_SHARE * nf) as usize).min(MAX_HAC_LAGS).max(1);
+    let cap = ((MAX_HAC_SHARE * nf) as usize).clamp(1, MAX_HAC_LAGS);
     let c0: f64 = r.iter().map(|v| v * v).sum();
     if c0 <= 0.0 {
         return floor.min(cap);

@@ -204,10 +204,14 @@ pub trait Element: Sync {
     /// border's terms are the upper's; a drift of the gaps: the two gaps drift oppositely, which moves the one
     /// curve's level), or `None` when the element means nothing without a gap, so that the zero-gap model
     /// leaves it out. Default: kept, no ties.
-    fn zero_gap_ties(&self, _ext: &Extension) -> Option<Vec<(usize, usize, f64)>> {
+    fn zero_gap_ties(&self, _ext: &Extension) -> Option<Ties> {
         Some(Vec::new())
     }
 }
+
+/// Ties of an element's packed entries in the zero-gap model: `(entry, to, scale)`, the entry held at
+/// `scale` times entry `to` (see [`Element::zero_gap_ties`]).
+pub type Ties = Vec<(usize, usize, f64)>;
 
 /// One extension of the declared model: an effect's element with its parameters.
 #[derive(Clone)]
@@ -483,7 +487,7 @@ impl EffectModel {
     /// model moved there (the gaps about their middle, tied entries set equal) and the pins that hold it.
     pub fn zero_gap(&self, time_scale: f64) -> (Self, crate::diagnose::fit::problem::Pins) {
         use crate::diagnose::fit::problem::Pin;
-        let kept: Vec<(Extension, Vec<(usize, usize, f64)>)> = self
+        let kept: Vec<(Extension, Ties)> = self
             .deterministic()
             .exts
             .into_iter()

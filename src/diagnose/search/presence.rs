@@ -691,7 +691,7 @@ impl Context<'_, '_> {
             se_method: SE_METHOD,
             play_bound: bound,
             play_input_units,
-            play_output_units: possible.then(|| r.play * slope),
+            play_output_units: possible.then_some(r.play * slope),
             heldout_rmse: rms(r.heldout.iter().copied()),
             play_free: self.play_free.to_vec(),
             reversals: self.reversals,
