@@ -334,7 +334,7 @@ impl OperatingPoint {
         }
     }
 
-    /// `v - level`, sample by sample, on the grid of [`GRID_BITS`].
+    /// `v - level`, sample by sample, rounded to 2^-30 of their scale (a power of two).
     pub fn deviations(&self, v: &[f64], level: f64) -> Vec<f64> {
         let d: Vec<f64> = v.iter().map(|a| a - level).collect();
         let s = std_dev(&d);
