@@ -101,7 +101,13 @@ fn check_heldout(case: &Case, names: &Names, figs: &[ReportFigure], extended: bo
             .map(|q| q.1)
             .eq(case.s.y[nf..case.d.n].iter().copied())
     );
-    let models = &p.series[..p.series.len() - 1];
+    // First the constant predictor's level: its error is the JSON's `constant_rmse`, in the caption too.
+    let constant = &p.series[0];
+    assert_eq!(constant.label, "predicting the fit part's mean");
+    let c = rms_between(measured, constant);
+    assert!(close(c, case.number(&["constant_rmse"])), "{c}");
+    assert!(f.caption.contains(&fmt(c)), "{}", f.caption);
+    let models = &p.series[1..p.series.len() - 1];
     assert!(models.iter().all(|s| s.style == SeriesStyle::Dashed));
     assert_eq!(models.len(), if extended { 2 } else { 1 });
     let before = rms_between(measured, &models[0]);

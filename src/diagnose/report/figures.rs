@@ -23,6 +23,9 @@ const PLAIN: usize = 3;
 const FINAL: usize = 0;
 const ONE_STEP: usize = 2;
 const REFERENCE: usize = 7;
+/// The constant predictor's level in the held-out figure.
+const CONSTANT_COLOR: usize = 4;
+const CONSTANT: &str = "predicting the fit part's mean";
 
 /// One panel of a report figure, owning its words.
 #[derive(Debug, Clone, PartialEq)]
@@ -238,16 +241,25 @@ pub fn heldout_figure(d: &Diagnosis, input: &ReportInput, c: &Curves) -> ReportF
     if c.extended(d) {
         models.push((c.names.after.as_str(), &c.after[nf..], FINAL));
     }
-    let series = measured_and_models(th, &input.y[nf..n], &models);
+    let mut series = measured_and_models(th, &input.y[nf..n], &models);
     let errors = model_errors(&series);
+    // The first baseline a user tries: the fit part's mean, as a level under the models.
+    let level = crate::stats::mean(&input.y[..nf]);
+    let constant =
+        Series::dashed(CONSTANT, th.iter().map(|t| (*t, level)).collect()).color(CONSTANT_COLOR);
+    let constant_rmse = rms(input.y[nf..n].iter().map(|v| v - level));
+    series.insert(0, constant);
     ReportFigure {
         file: "heldout.png".into(),
         title: "Held-out part: measured output and the models (free run)".into(),
         caption: format!(
             "Held-out part ({} samples, used by no fit): measured (grey, drawn on top) and the models simulated \
-             free-run from the start of the record (dashed): {}.",
+             free-run from the start of the record (dashed): {}; predicting the fit part's mean, the level \
+             drawn under them, gives RMSE {} (fit {:.1}% for the final model).",
             n - nf,
-            errors.join("; ")
+            errors.join("; "),
+            fmt(constant_rmse),
+            d.explained.fit_percent
         ),
         panels: panel("", input.columns[0], input.columns[2], series),
     }
