@@ -666,13 +666,14 @@ pub fn choose_rate(
             Ok(Rate::user(d))
         }
         None if u.len() < 2 => Ok(Rate::user(1)),
-        None => {
-            // About the operating point, as the diagnosis works: a shifted record gets the same rate.
-            let n_fit = fit_len(u.len(), fit_fraction);
-            let op = crate::diagnose::search::diagnosis::OperatingPoint::of(u, y, n_fit);
-            let (u, y) = (op.deviations(u, op.u), op.deviations(y, op.y));
-            Ok(crate::diagnose::fit::rate::choose(&u, &y, n_fit))
-        }
+        // On the record as it is: about the operating point, the rate's candidate fits rest where the
+        // oversampled test records do not start, and chose every sample at 30x and 100x (11.5x the true
+        // model's error); the rate is therefore not offset-invariant yet (EMPS shifted by (-3, -7): 4, not 9).
+        None => Ok(crate::diagnose::fit::rate::choose(
+            u,
+            y,
+            fit_len(u.len(), fit_fraction),
+        )),
     }
 }
 

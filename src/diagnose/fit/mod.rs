@@ -7,6 +7,7 @@
 //! - [`orders`]: a structure (orders and delay); [`structure`]: its choice, with the delay and initial state,
 //!   when they are not declared.
 //! - [`lm`]: the bounded Levenberg-Marquardt fitter, costs, BIC and covariances.
+//! - [`pins`]: which parameters a fit holds (the play pinned at a width, the zero-gap model's ties).
 //!
 //! Nothing here names an effect: an extension's behaviour comes from its effect (`crate::diagnose::effects`).
 
@@ -14,6 +15,7 @@ pub(crate) mod linear_oe;
 pub mod lm;
 pub mod model;
 pub mod orders;
+pub mod pins;
 pub mod problem;
 pub mod rate;
 pub mod starts;

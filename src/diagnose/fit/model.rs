@@ -469,8 +469,8 @@ impl EffectModel {
     }
 
     /// The pins that hold the play at `play` (c2 = play - c1), every other parameter fitted.
-    pub fn play_pins(&self, play: f64, time_scale: f64) -> crate::diagnose::fit::problem::Pins {
-        use crate::diagnose::fit::problem::{Pin, Pins};
+    pub fn play_pins(&self, play: f64, time_scale: f64) -> crate::diagnose::fit::pins::Pins {
+        use crate::diagnose::fit::pins::{Pin, Pins};
         let mut pins = Pins::free(self.pack(time_scale).len());
         let [_, c1, c2] = self.gap_entries();
         pins.0[c2] = Pin::Tied {
@@ -485,8 +485,8 @@ impl EffectModel {
     /// the zero-gap case of its backlash): m2 = m1, c2 = -c1, each element's own ties (curved borders: both
     /// borders the same curve); the noise model and elements that mean nothing without a gap left out. The
     /// model moved there (the gaps about their middle, tied entries set equal) and the pins that hold it.
-    pub fn zero_gap(&self, time_scale: f64) -> (Self, crate::diagnose::fit::problem::Pins) {
-        use crate::diagnose::fit::problem::Pin;
+    pub fn zero_gap(&self, time_scale: f64) -> (Self, crate::diagnose::fit::pins::Pins) {
+        use crate::diagnose::fit::pins::Pin;
         let kept: Vec<(Extension, Ties)> = self
             .deterministic()
             .exts

@@ -884,4 +884,4 @@ mod tests {
 #[cfg(test)]
 mod mutation_tests;
 mod pinned;
-pub use pinned::{Pin, Pins};
+pub use crate::diagnose::fit::pins::{Pin, Pins};

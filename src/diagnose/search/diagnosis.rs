@@ -311,8 +311,9 @@ impl Explained {
 /// Every fit, start, linear baseline and effect with a centre (dead zone, saturation, quantization, curved
 /// borders) sees deviations from it, so that a record shifted by constants (u + a, y + b), as a sensor's
 /// arbitrary zero shifts it, gets the same answer. The output's level is its first sample so that the
-/// backlash memory, which starts at 0 about it, starts where the record does (a plant at rest at 0 keeps the
-/// plant's own convention).
+/// backlash memory, which starts at 0 about it, starts where the record does: about the fit part's mean
+/// instead, a clean paper-plant record's play came out 0.056 (13 standard errors) off, its memory starting
+/// far from the plant's.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct OperatingPoint {
     pub u: f64,
