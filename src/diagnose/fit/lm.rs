@@ -356,23 +356,44 @@ pub fn covariance<R: Residuals + ?Sized>(
     typ: &[f64],
     fd_rel: f64,
 ) -> Option<DMatrix<f64>> {
-    let p = theta.len();
-    let mut r = Vec::new();
-    let cost = evaluate(f, theta, &mut r)?;
-    let n = r.len();
-    if n <= p {
-        return None;
+    let info = Information::at(f, theta, typ, fd_rel)?;
+    let s2 = info.s2();
+    Some(info.h.cholesky()?.inverse() * s2)
+}
+
+/// The residuals at a point, their Jacobian (column-major, one column per parameter) and `J^T J`.
+struct Information {
+    r: Vec<f64>,
+    cost: f64,
+    jac: Vec<f64>,
+    h: DMatrix<f64>,
+}
+
+impl Information {
+    /// At `theta`; `None` when the point is not valid, there are no more residuals than parameters, or a
+    /// parameter leaves the residuals unchanged (a zero diagonal: the data do not determine it).
+    fn at<R: Residuals + ?Sized>(f: &R, theta: &[f64], typ: &[f64], fd_rel: f64) -> Option<Self> {
+        let p = theta.len();
+        let mut r = Vec::new();
+        let cost = evaluate(f, theta, &mut r)?;
+        let n = r.len();
+        if n <= p {
+            return None;
+        }
+        let free: Vec<usize> = (0..p).collect();
+        let mut jac = vec![0.0; n * p];
+        jacobian(f, theta, &r, typ, &free, fd_rel, &mut jac);
+        let (h, _) = normal_equations(&jac, &r, p);
+        if (0..p).any(|i| h[(i, i)] <= 0.0) {
+            return None;
+        }
+        Some(Self { r, cost, jac, h })
     }
-    let free: Vec<usize> = (0..p).collect();
-    let mut jac = vec![0.0; n * p];
-    jacobian(f, theta, &r, typ, &free, fd_rel, &mut jac);
-    let (h, _) = normal_equations(&jac, &r, p);
-    if (0..p).any(|i| h[(i, i)] <= 0.0) {
-        return None;
+
+    /// The residual variance `cost / (n - p)`.
+    fn s2(&self) -> f64 {
+        self.cost / (self.r.len() - self.h.nrows()) as f64
     }
-    let inv = h.cholesky()?.inverse();
-    let s2 = cost / (n - p) as f64;
-    Some(inv * s2)
 }
 
 /// The variance of a linear combination `w . theta` of a least-squares estimate, two ways.
@@ -402,21 +423,15 @@ pub fn combination_variance<R: Residuals + ?Sized>(
     w: &[f64],
 ) -> Option<CombinationVariance> {
     let p = theta.len();
-    let mut r = Vec::new();
-    let cost = evaluate(f, theta, &mut r)?;
+    if w.len() != p {
+        return None;
+    }
+    let info = Information::at(f, theta, typ, fd_rel)?;
+    let s2 = info.s2();
+    let Information { r, jac, h, .. } = info;
     let n = r.len();
-    if n <= p || w.len() != p {
-        return None;
-    }
-    let free: Vec<usize> = (0..p).collect();
-    let mut jac = vec![0.0; n * p];
-    jacobian(f, theta, &r, typ, &free, fd_rel, &mut jac);
-    let (h, _) = normal_equations(&jac, &r, p);
-    if (0..p).any(|i| h[(i, i)] <= 0.0) {
-        return None;
-    }
     let v = h.cholesky()?.solve(&DVector::from_column_slice(w));
-    let classical = cost / (n - p) as f64 * v.dot(&DVector::from_column_slice(w));
+    let classical = s2 * v.dot(&DVector::from_column_slice(w));
     // The influence of each sample on w . theta: (v . J_t) r_t.
     let score: Vec<f64> = (0..n)
         .map(|t| (0..p).map(|j| v[j] * jac[j * n + t]).sum::<f64>() * r[t])
