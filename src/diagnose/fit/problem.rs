@@ -596,10 +596,18 @@ pub(crate) fn fit_plain(
     // Perturbed restarts in CHAINS independent chains from the same best, each seeded by its own index;
     // the user's seed only orders the chains, and the lowest cost over all of them wins (ties to the lower
     // chain), so that no seed picks the answer.
+    // On a long record restarts are explored on the window, judged against the best's optimum there: both
+    // computed once, shared by the chains.
+    let window = p.windowed().then(|| p.shortened(p.n_explore));
+    let best_window = window.as_ref().and_then(|w| {
+        w.fit(&best, std::slice::from_ref(&best), Objective::Simulation)
+            .map(|(_, c)| c)
+    });
     let ends: Vec<(u64, EffectModel, f64)> = (0..CHAINS)
         .map(|i| (i + seed) % CHAINS)
         .map(|c| {
-            let (m, k) = restart_chain(p, s, (best.clone(), cost), restarts, c);
+            let start = (best.clone(), cost, best_window);
+            let (m, k) = restart_chain(p, s, window.as_ref(), start, (restarts, c));
             (c, m, k)
         })
         .collect();
@@ -618,27 +626,18 @@ pub(crate) fn fit_plain(
 /// Independent chains of perturbed restarts of the plain fit.
 pub const CHAINS: u64 = 3;
 
-/// One chain of `restarts` perturbed restarts around the best so far (`start`, model and fit-part cost),
-/// seeded by `chain`. On a long record a restart is explored on the window and refined on the whole fit part
-/// only if the optimum it reaches there is lower than the best's own optimum there (the best, refined on the
-/// whole fit part, sits off the window's optimum: its raw window cost would let almost every restart
-/// through, each costing a refinement).
+/// One chain of `restarts` perturbed restarts around the best so far (model, fit-part cost and its optimum on
+/// the exploration `window`, when the record is long enough to have one), seeded by `chain`. On a long record
+/// a restart is explored on the window and refined on the whole fit part only if the optimum it reaches there
+/// is lower than the best's own optimum there (the best, refined on the whole fit part, sits off the window's
+/// optimum: its raw window cost would let almost every restart through, each costing a refinement).
 fn restart_chain(
     p: &Problem,
     s: Structure,
-    start: (EffectModel, f64),
-    restarts: usize,
-    chain: u64,
+    window: Option<&Problem>,
+    (mut best, mut cost, mut best_window): (EffectModel, f64, Option<f64>),
+    (restarts, chain): (usize, u64),
 ) -> (EffectModel, f64) {
-    let (mut best, mut cost) = start;
-    let window = p.windowed().then(|| p.shortened(p.n_explore));
-    let window_optimum = |m: &EffectModel| {
-        window
-            .as_ref()?
-            .fit(m, std::slice::from_ref(m), Objective::Simulation)
-            .map(|(_, c)| c)
-    };
-    let mut best_window = window_optimum(&best);
     let mut rng = ChaCha8Rng::seed_from_u64(chain ^ 0xD1A6_0000);
     let typ = best.base.typical(p.y_scale);
     for _ in 0..restarts {
@@ -660,7 +659,7 @@ fn restart_chain(
             })
             .collect();
         let start = best.unpack(&th, p.time_scale);
-        if let Some(w) = &window {
+        if let Some(w) = window {
             let Some((m, c)) = w.fit(&best, std::slice::from_ref(&start), Objective::Simulation)
             else {
                 continue;
