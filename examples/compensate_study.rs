@@ -25,14 +25,9 @@ fn plant(snr: f64, seed: u64) -> PlantParams {
     }
 }
 
+/// The loop on the paper plant's structure.
 fn settings(memory: Option<f64>, smoothing: f64) -> LoopSettings {
-    LoopSettings {
-        na: 2,
-        nb: 0,
-        delay: 1,
-        memory,
-        smoothing,
-    }
+    LoopSettings::for_structure(&PlantParams::PAPER.arx, memory, smoothing)
 }
 
 /// Mean over the seeds of (whole-record RMSE, last-quarter RMSE) of `mode`.

@@ -59,13 +59,7 @@ pub fn compensate(r: &[f64], o: &CompensateOptions) -> Result<(Vec<LoopRun>, Val
         ..PlantParams::PAPER
     };
     let a = &plant.arx;
-    let s = LoopSettings {
-        na: a.na,
-        nb: a.nb,
-        delay: a.delay,
-        memory: o.memory,
-        smoothing: o.smoothing,
-    };
+    let s = LoopSettings::for_structure(a, o.memory, o.smoothing);
     let runs = o
         .modes
         .iter()

@@ -92,6 +92,17 @@ pub struct LoopSettings {
 }
 
 impl LoopSettings {
+    /// The estimator's structure that of the linear block `arx` (its orders and delay).
+    pub fn for_structure(arx: &ArxParams, memory: Option<f64>, smoothing: f64) -> Self {
+        Self {
+            na: arx.na,
+            nb: arx.nb,
+            delay: arx.delay,
+            memory,
+            smoothing,
+        }
+    }
+
     /// The estimator's setting: MRGIA recommended, with the forgetting of the memory.
     pub fn estimator_config(&self) -> Result<MrgiaConfig, LoopError> {
         let rho_min = match self.memory {

@@ -2,14 +2,9 @@ use super::*;
 
 const N: usize = 20_000;
 
+/// The loop on the paper plant's structure.
 fn settings(memory: Option<f64>, smoothing: f64) -> LoopSettings {
-    LoopSettings {
-        na: 2,
-        nb: 0,
-        delay: 1,
-        memory,
-        smoothing,
-    }
+    LoopSettings::for_structure(&PlantParams::PAPER.arx, memory, smoothing)
 }
 
 fn noisy(std: f64) -> PlantParams {
