@@ -357,6 +357,10 @@ pub fn covariance<R: Residuals + ?Sized>(
     fd_rel: f64,
 ) -> Option<DMatrix<f64>> {
     let info = Information::at(f, theta, typ, fd_rel)?;
+    // A parameter that leaves the residuals unchanged (a zero diagonal) is one the data do not determine.
+    if (0..info.h.nrows()).any(|i| info.h[(i, i)] <= 0.0) {
+        return None;
+    }
     let s2 = info.s2();
     Some(info.h.cholesky()?.inverse() * s2)
 }
@@ -370,8 +374,7 @@ struct Information {
 }
 
 impl Information {
-    /// At `theta`; `None` when the point is not valid, there are no more residuals than parameters, or a
-    /// parameter leaves the residuals unchanged (a zero diagonal: the data do not determine it).
+    /// At `theta`; `None` when the point is not valid or there are no more residuals than parameters.
     fn at<R: Residuals + ?Sized>(f: &R, theta: &[f64], typ: &[f64], fd_rel: f64) -> Option<Self> {
         let p = theta.len();
         let mut r = Vec::new();
@@ -384,9 +387,6 @@ impl Information {
         let mut jac = vec![0.0; n * p];
         jacobian(f, theta, &r, typ, &free, fd_rel, &mut jac);
         let (h, _) = normal_equations(&jac, &r, p);
-        if (0..p).any(|i| h[(i, i)] <= 0.0) {
-            return None;
-        }
         Some(Self { r, cost, jac, h })
     }
 
@@ -407,14 +407,19 @@ pub struct CombinationVariance {
     pub sandwich: f64,
     /// The Bartlett window's lags.
     pub lags: usize,
+    /// Whether the record determines every parameter (`J^T J` positive definite); when not, the
+    /// combination is still determined (else there would be no variance), through the pseudo-inverse.
+    pub all_determined: bool,
 }
 
 /// The longest Bartlett window of [`combination_variance`] (lags), and its share of the record at most.
 const MAX_HAC_LAGS: usize = 2000;
 const MAX_HAC_SHARE: f64 = 0.1;
 
-/// [`CombinationVariance`] of `w . theta` at `theta`; `None` when the information matrix is singular or the
-/// point is not valid.
+/// [`CombinationVariance`] of `w . theta` at `theta`; `None` when the data do not determine `w . theta` (see
+/// [`solve_determined`]) or the point is not valid. Parameters the data do not determine are allowed when the
+/// combination does not involve them (a gap's centre that a following friction element absorbs, with its
+/// width `c1 + c2` determined).
 pub fn combination_variance<R: Residuals + ?Sized>(
     f: &R,
     theta: &[f64],
@@ -430,7 +435,8 @@ pub fn combination_variance<R: Residuals + ?Sized>(
     let s2 = info.s2();
     let Information { r, jac, h, .. } = info;
     let n = r.len();
-    let v = h.cholesky()?.solve(&DVector::from_column_slice(w));
+    let all_determined = h.clone().cholesky().is_some();
+    let v = solve_determined(&h, &DVector::from_column_slice(w))?;
     let classical = s2 * v.dot(&DVector::from_column_slice(w));
     // The influence of each sample on w . theta: (v . J_t) r_t.
     let score: Vec<f64> = (0..n)
@@ -448,7 +454,41 @@ pub fn combination_variance<R: Residuals + ?Sized>(
         classical,
         sandwich,
         lags,
+        all_determined,
     })
+}
+
+/// Relative size (to the largest eigenvalue of `J^T J`) below which a direction counts as undetermined.
+const NULL_EIGEN: f64 = 1e-9;
+/// Share of the combination's weights that may lie in the undetermined directions (rounding) for it to
+/// count as determined.
+const NULL_SHARE: f64 = 1e-6;
+
+/// `v` with `H v = w` for the information matrix `H`: by Cholesky where `H` is positive definite; where it is
+/// singular (directions the data do not determine), by the pseudo-inverse, provided `w` has no part in those
+/// directions (then `w . theta` is determined even though `theta` is not, and `v` gives its variance);
+/// `None` otherwise.
+fn solve_determined(h: &DMatrix<f64>, w: &DVector<f64>) -> Option<DVector<f64>> {
+    if let Some(c) = h.clone().cholesky() {
+        return Some(c.solve(w));
+    }
+    let eig = h.clone().symmetric_eigen();
+    let top = eig.eigenvalues.iter().fold(0.0f64, |a, v| a.max(*v));
+    if top.is_nan() || top <= 0.0 {
+        return None;
+    }
+    let mut v = DVector::zeros(w.len());
+    let mut null = 0.0;
+    for (k, lambda) in eig.eigenvalues.iter().enumerate() {
+        let q = eig.eigenvectors.column(k);
+        let along = q.dot(w);
+        if *lambda > NULL_EIGEN * top {
+            v += q * (along / lambda);
+        } else {
+            null += along * along;
+        }
+    }
+    (null <= (NULL_SHARE * w.norm()).powi(2)).then_some(v)
 }
 
 /// The Bartlett window for residuals `r`: out to the first lag where their autocorrelation falls below
@@ -532,6 +572,43 @@ mod tests {
         let (runs, _) = fit(&|k| if (k / 20) % 2 == 0 { 0.1 } else { -0.1 });
         assert!(runs.sandwich > 4.0 * runs.classical, "{runs:?}");
         assert!(runs.lags >= 10, "{runs:?}");
+    }
+
+    /// Two parameters that enter only as their sum (y = (a + b) t): their sum's variance is that of a
+    /// single slope, by the pseudo-inverse, while their difference is undetermined; a parameter the
+    /// residuals ignore does not hide the others.
+    #[test]
+    fn a_determined_combination_of_undetermined_parameters_has_a_variance() {
+        let n = 100;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 / n as f64).collect();
+        let y: Vec<f64> = (0..n)
+            .map(|k| 3.0 * t[k] + if k % 3 == 0 { 0.1 } else { -0.05 })
+            .collect();
+        let f = |th: &[f64], out: &mut Vec<f64>| {
+            out.clear();
+            out.extend((0..n).map(|k| y[k] - (th[0] + th[1]) * t[k]));
+            true
+        };
+        let theta = [1.0, 2.0, 7.0];
+        let typ = [1.0; 3];
+        let sum = combination_variance(&f, &theta, &typ, 1e-6, &[1.0, 1.0, 0.0]).unwrap();
+        assert!(!sum.all_determined);
+        let single = |th: &[f64], out: &mut Vec<f64>| {
+            out.clear();
+            out.extend((0..n).map(|k| y[k] - th[0] * t[k]));
+            true
+        };
+        let one = combination_variance(&single, &[3.0], &[1.0], 1e-6, &[1.0]).unwrap();
+        assert!(one.all_determined);
+        // s^2 = cost / (n - p) counts three parameters against one.
+        let dof = (n - 1) as f64 / (n - 3) as f64;
+        assert!(
+            (sum.classical / one.classical / dof - 1.0).abs() < 1e-6,
+            "{sum:?} {one:?}"
+        );
+        assert!(combination_variance(&f, &theta, &typ, 1e-6, &[1.0, -1.0, 0.0]).is_none());
+        assert!(combination_variance(&f, &theta, &typ, 1e-6, &[0.0, 0.0, 1.0]).is_none());
+        assert!(covariance(&f, &theta, &typ, 1e-6).is_none());
     }
 
     #[test]

@@ -2,6 +2,7 @@
 //! round of it ([`round`]: test the residual, fit the candidates it points to, judge, choose), the decision
 //! rule ([`decision`]) and what a diagnosis finds ([`diagnosis`]).
 
+mod alternatives;
 pub mod decision;
 pub mod diagnosis;
 pub mod engine;

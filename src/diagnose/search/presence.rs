@@ -1,14 +1,21 @@
 //! The verdict on play: `present`, `absent` (with the play the record rules out) or `undetermined` (with the
 //! experiment that would decide), judged on the final model with the evidence for and against in words.
 //!
-//! - **Present** needs all of: the final model with its gap beats, on the held-out part, the same model with
+//! - **The model it stands on.** The final model, unless one of the play-free effects that imitate play,
+//!   added to it with its gap kept (a rival with play, see [`super::alternatives`]), predicts the held-out
+//!   part clearly better: then that rival, named in `model`, and its gap is judged against the same effects
+//!   without a gap (like with like). Choosing it on the held-out part spends some of that part's evidence,
+//!   so its gain must then reach [`FEW_REVERSALS_Z`].
+//! - **Present** needs all of: the model with its gap beats, on the held-out part, the same model with
 //!   the gap pinned at zero (the same borders as one memoryless curve, paper 003's zero-gap case) and that
 //!   zero-gap model with each play-free effect of the catalogue that imitates play added (a curve, friction,
 //!   direction-dependent dynamics, a dead zone, clipping), each by at least [`MIN_GAIN`] and significantly;
 //!   the play is above zero by [`residual::Z95`] standard errors that hold with coloured residuals (a
 //!   Newey-West sandwich); it is narrower than [`MAX_PLAY_SHARE`] of the travel of the linear block's
 //!   output; at least [`MIN_REVERSALS`] reversals of that output cross it on the fit part and
-//!   [`MIN_HELDOUT_REVERSALS`] on the held-out part; the two halves of the fit part give plays that agree.
+//!   [`MIN_HELDOUT_REVERSALS`] on the held-out part (or [`FEW_REVERSALS`] and [`FEW_HELDOUT_REVERSALS`], a
+//!   periodic test of a few periods, with every gain at [`FEW_REVERSALS_Z`]); the record determines every
+//!   parameter of the model; the two halves of the fit part give plays that agree.
 //! - **Absent** needs: no gain from the gap, the play not significantly above zero, a bound (the largest
 //!   play the record does not rule out at 95%, checked on the play's profile) narrower than
 //!   [`MAX_BOUND_SHARE`] of the travel, and at least [`MIN_ABSENT_REVERSALS`] reversals crossing it.
@@ -17,10 +24,9 @@
 
 use serde::Serialize;
 
-use crate::diagnose::effects::{CATALOGUE, Effect};
+use super::alternatives::{Fitted, best_rival, heldout_errors, imitators, play_free};
 use crate::diagnose::fit::model::{EffectModel, Objective, Rest, Simulation};
 use crate::diagnose::fit::problem::Problem;
-use crate::diagnose::fit::starts::StartContext;
 use crate::diagnose::residual::{self, statistics::diebold_mariano};
 use crate::stats::{quantile, rms};
 
@@ -33,6 +39,17 @@ pub const MIN_Z: f64 = 1.645;
 pub const MIN_REVERSALS: usize = 20;
 /// ... and on the held-out part, which judges the gain.
 pub const MIN_HELDOUT_REVERSALS: usize = 5;
+/// Fewer crossing reversals than [`MIN_REVERSALS`], down to this many on the fit part (five periods of a
+/// sine test) ...
+pub const FEW_REVERSALS: usize = 10;
+/// ... and this many on the held-out part, still allow `present` when the gap's held-out gain over every
+/// play-free model is significant at [`FEW_REVERSALS_Z`]: each reversal of a periodic test repeats the
+/// same dwell over many samples, but a few events make the test's own error larger than its z assumes.
+pub const FEW_HELDOUT_REVERSALS: usize = 3;
+/// The one-sided z (0.1%) the held-out gain needs when the reversals are few.
+pub const FEW_REVERSALS_Z: f64 = 3.09;
+/// What the verdict stands on unless a rival with play predicts better.
+const FINAL_MODEL: &str = "the final model";
 /// Reversals crossing the bound, on the fit part, for `absent`.
 pub const MIN_ABSENT_REVERSALS: usize = 20;
 /// The widest play, as a share of the travel (1st to 99th percentile of the linear block's output on the
@@ -71,12 +88,18 @@ pub struct PlayFree {
     pub heldout_rmse: f64,
     /// Diebold-Mariano z of the model with the gap against it (positive: the gap predicts better).
     pub z: f64,
+    /// Its held-out errors `y - y_model` (to judge it against another model with the gap).
+    #[serde(skip)]
+    pub errors: Vec<f64>,
 }
 
 /// The verdict on play with its evidence (the JSON's `backlash`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BacklashSupport {
     pub presence: Presence,
+    /// The model the verdict stands on: the final model, or a rival with play that predicts the held-out
+    /// part better (the final model with a play-free effect added, its gap kept).
+    pub model: String,
     /// True exactly when `presence` is `present`.
     pub supported: bool,
     /// The evidence for and against, in words and numbers.
@@ -113,35 +136,27 @@ pub struct BacklashSupport {
 
 /// The final model's simulation with what the verdict reads off it.
 struct Reading {
+    name: String,
     model: EffectModel,
     sim: Simulation,
     heldout: Vec<f64>,
     play: f64,
     se: Option<f64>,
     se_white: Option<f64>,
+    /// Whether the record determines every parameter of the model (else the model cannot carry a claim).
+    identified: bool,
     travel: f64,
 }
 
 /// The verdict on play for the final model `last` of a diagnosis on problem `p`.
 pub(crate) fn assess(p: &Problem, last: &EffectModel) -> BacklashSupport {
     (p.progress)("judging the play: the same model without a gap, and its play-free alternatives");
-    let Some(r) = read(p, last) else {
+    let Some(first) = read(p, last, FINAL_MODEL) else {
         return unreadable();
     };
-    let mut reasons = Vec::new();
+    let (r, play_free, switched) = standing(p, first);
+    let mut reasons: Vec<String> = switched.into_iter().collect();
     let impossible = impossible(&r, &mut reasons);
-    let twin = play_free(p, &r, &r.model, "zero-gap");
-    let gains = twin.iter().all(|t| beats(&r, t));
-    let mut play_free = twin.into_iter().collect::<Vec<_>>();
-    if gains && !impossible {
-        play_free.extend(imitators(p, &r, &r.model, "zero-gap"));
-        if !r.model.exts.is_empty() {
-            // The look-alikes alone, without the final model's other effects (friction, itself a play, would
-            // otherwise stay in every alternative).
-            let bare = EffectModel::plain(r.model.base.clone());
-            play_free.extend(imitators(p, &r, &bare, "zero-gap, no other effect"));
-        }
-    }
     let reversals = [
         crossing_reversals(&r.sim.x[..p.n_fit], r.play.abs()),
         crossing_reversals(&r.sim.x[p.n_fit..], r.play.abs()),
@@ -157,18 +172,69 @@ pub(crate) fn assess(p: &Problem, last: &EffectModel) -> BacklashSupport {
     out
 }
 
-/// The final model's deterministic part simulated, its play and the play's standard errors.
-fn read(p: &Problem, last: &EffectModel) -> Option<Reading> {
+/// The model the verdict stands on, the play-free models it is judged against and, where it is not the
+/// final model `first`, why. The play-free imitators are fitted only where the gap beats its zero-gap twin;
+/// a rival with play only for the imitators the final model does not beat.
+fn standing(p: &Problem, first: Reading) -> (Reading, Vec<PlayFree>, Option<String>) {
+    let twin = play_free(p, &first.heldout, &first.model, "zero-gap");
+    let gains = twin.as_ref().is_some_and(|t| beats(&first, t, MIN_Z));
+    let mut free: Vec<PlayFree> = twin.into_iter().collect();
+    if !gains {
+        return (first, free, None);
+    }
+    let last = first.fitted();
+    let mut found: Vec<_> = imitators(p, &last, &first.sim, &first.model, "zero-gap")
+        .into_iter()
+        .map(|im| (im, "the final model"))
+        .collect();
+    if !first.model.exts.is_empty() {
+        // The look-alikes alone, without the final model's other effects (friction, itself a play, would
+        // otherwise stay in every alternative).
+        let bare = EffectModel::plain(first.model.base.clone());
+        let alone = imitators(p, &last, &first.sim, &bare, "zero-gap, no other effect");
+        found.extend(
+            alone
+                .into_iter()
+                .map(|im| (im, "the linear block and play alone")),
+        );
+    }
+    let threats = found
+        .iter()
+        .filter(|(im, _)| !beats(&first, &im.free, MIN_Z))
+        .map(|(im, name)| (im, *name));
+    let rival = best_rival(p, &last, threats, MIN_GAIN, MIN_Z);
+    free.extend(found.into_iter().map(|(im, _)| im.free));
+    let Some(r) = rival.and_then(|f| read(p, &f.model, &f.name)) else {
+        return (first, free, None);
+    };
+    for t in &mut free {
+        t.z = diebold_mariano(&t.errors, &r.heldout);
+    }
+    let why = format!(
+        "{} predicts the held-out part better than the final model ({} against {}, Diebold-Mariano z \
+         {:.2}): the verdict stands on that model, whose gap is judged against the same effects without it",
+        r.name,
+        g(rms(r.heldout.iter().copied())),
+        g(rms(first.heldout.iter().copied())),
+        diebold_mariano(&first.heldout, &r.heldout)
+    );
+    (r, free, Some(why))
+}
+
+/// A model's deterministic part simulated, its play and the play's standard errors; named `name`.
+fn read(p: &Problem, last: &EffectModel, name: &str) -> Option<Reading> {
     let model = last.deterministic();
     let sim = model.simulate(p.u, p.rest, p.u.len(), p.limit)?;
-    let heldout = errors(p, &sim);
+    let heldout = heldout_errors(p, &sim);
     let var = p.combination_variance(&model, &model.play_weights(p.time_scale));
     let x_fit = &sim.x[..p.n_fit];
     let travel = quantile(x_fit, 0.99).unwrap_or(0.0) - quantile(x_fit, 0.01).unwrap_or(0.0);
     Some(Reading {
+        name: name.into(),
         play: model.play(),
         se: var.map(|v| v.sandwich.sqrt()),
         se_white: var.map(|v| v.classical.sqrt()),
+        identified: var.is_some_and(|v| v.all_determined),
         model,
         sim,
         heldout,
@@ -176,13 +242,15 @@ fn read(p: &Problem, last: &EffectModel) -> Option<Reading> {
     })
 }
 
-/// Held-out errors y - y_model of a simulation.
-fn errors(p: &Problem, sim: &Simulation) -> Vec<f64> {
-    p.y[p.n_fit..]
-        .iter()
-        .zip(&sim.y[p.n_fit..])
-        .map(|(a, b)| a - b)
-        .collect()
+impl Reading {
+    /// The model and its held-out errors, for the comparisons.
+    fn fitted(&self) -> Fitted {
+        Fitted {
+            name: self.name.clone(),
+            model: self.model.clone(),
+            heldout: self.heldout.clone(),
+        }
+    }
 }
 
 fn unreadable() -> BacklashSupport {
@@ -232,6 +300,7 @@ impl BacklashSupport {
     pub(crate) fn undetermined(why: &str) -> Self {
         Self {
             presence: Presence::Undetermined,
+            model: FINAL_MODEL.into(),
             supported: false,
             reasons: vec![why.into()],
             play: f64::NAN,
@@ -291,72 +360,11 @@ fn impossible(r: &Reading, reasons: &mut Vec<String>) -> bool {
     found
 }
 
-/// Whether the model with the gap beats the play-free model `t` on the held-out part.
-fn beats(r: &Reading, t: &PlayFree) -> bool {
+/// Whether the model with the gap beats the play-free model `t` on the held-out part, by [`MIN_GAIN`] with
+/// a Diebold-Mariano z of at least `z`.
+fn beats(r: &Reading, t: &PlayFree, z: f64) -> bool {
     let rmse = rms(r.heldout.iter().copied());
-    rmse < (1.0 - MIN_GAIN) * t.heldout_rmse && t.z >= MIN_Z
-}
-
-/// The zero-gap model of `start`'s structure fitted from it, compared with the final model on the held-out
-/// part; `None` when it cannot be fitted.
-fn play_free(p: &Problem, r: &Reading, start: &EffectModel, name: &str) -> Option<PlayFree> {
-    let (moved, pins) = start.zero_gap(p.time_scale);
-    let (m, _) = p.fit_pinned(&moved, &pins, std::slice::from_ref(&moved))?;
-    let sim = m.simulate(p.u, p.rest, p.u.len(), p.limit)?;
-    let e = errors(p, &sim);
-    Some(PlayFree {
-        model: name.into(),
-        heldout_rmse: rms(e.iter().copied()),
-        z: diebold_mariano(&e, &r.heldout),
-    })
-}
-
-/// The zero-gap model of `current` with each play-free effect of the catalogue that imitates play added
-/// (those `current` lacks and can take), fitted from the effect's own starts; named `<name> + <effect>`.
-fn imitators(p: &Problem, r: &Reading, current: &EffectModel, name: &str) -> Vec<PlayFree> {
-    use rayon::prelude::*;
-    let residual: Vec<f64> = p.y[..p.n_fit]
-        .iter()
-        .zip(&r.sim.y)
-        .map(|(a, b)| a - b)
-        .collect();
-    let y_fit = &p.y[..p.n_fit];
-    let clip = y_fit
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-            (lo.min(*v), hi.max(*v))
-        });
-    let no_mrgia = |_: usize, _: usize, _: usize| None;
-    let cx = StartContext {
-        current,
-        u: &p.u[..p.n_fit],
-        y: y_fit,
-        residual: &residual,
-        y_scale: p.y_scale,
-        omega: 0.0,
-        lattice: None,
-        clip,
-        mrgia: &no_mrgia,
-    };
-    let effects: Vec<&'static dyn Effect> = CATALOGUE
-        .iter()
-        .copied()
-        .filter(|e| e.imitates_play() && current.can_add(e.id()))
-        .collect();
-    effects
-        .par_iter()
-        .filter_map(|e| {
-            let plan = e.plan(&cx)?;
-            plan.alternatives
-                .iter()
-                .filter(|alt| alt.template.deterministic() == alt.template)
-                .filter_map(|alt| {
-                    let start = alt.starts.first()?;
-                    play_free(p, r, start, &format!("{name} + {}", e.id()))
-                })
-                .min_by(|a, b| a.heldout_rmse.total_cmp(&b.heldout_rmse))
-        })
-        .collect()
+    rmse < (1.0 - MIN_GAIN) * t.heldout_rmse && t.z >= z
 }
 
 /// Reversals of `x` whose excursion afterwards exceeds `h` (see [`reversal_turns`]).
@@ -429,11 +437,13 @@ impl Context<'_, '_> {
     fn decide(&self, impossible: bool, reasons: &mut Vec<String>) -> BacklashSupport {
         let r = self.r;
         self.say_gain(reasons);
-        let gains = !self.play_free.is_empty() && self.play_free.iter().all(|t| beats(r, t));
+        let gains = !self.play_free.is_empty()
+            && self.play_free.iter().all(|t| beats(r, t, self.needed_z()));
         let significant = self.significant(reasons);
         let crossed = self.crossed(reasons);
         let mut halves = None;
-        let present = !impossible && significant && gains && crossed && {
+        let identified = self.identified(reasons);
+        let present = !impossible && significant && gains && crossed && identified && {
             halves = self.halves();
             self.halves_agree(halves, reasons)
         };
@@ -504,6 +514,32 @@ impl Context<'_, '_> {
         true
     }
 
+    /// Whether the record determines every parameter of the model the verdict stands on, in words when it
+    /// does not: a model the record does not determine (a friction element absorbs the gap's centre, say)
+    /// is one of many that fit alike, and cannot carry a claim of play, though its play has a variance.
+    fn identified(&self, reasons: &mut Vec<String>) -> bool {
+        let r = self.r;
+        if r.se.is_some() && !r.identified {
+            reasons.push(
+                "the record does not determine every parameter of the model (its information matrix is \
+                 singular: the play c1 + c2 is determined, but not where the gap sits, which the following \
+                 element absorbs): many models fit alike, so the play cannot be claimed from it"
+                    .into(),
+            );
+        }
+        r.identified
+    }
+
+    /// The z the held-out gain needs against every play-free model: [`MIN_Z`], or [`FEW_REVERSALS_Z`] when
+    /// the verdict stands on a rival chosen on the held-out part (the choice spends some of its evidence).
+    fn needed_z(&self) -> f64 {
+        if self.r.name == FINAL_MODEL {
+            MIN_Z
+        } else {
+            FEW_REVERSALS_Z
+        }
+    }
+
     /// Whether the play is significantly above zero and at least [`MIN_PLAY_SHARE`] of the travel, in
     /// words.
     fn significant(&self, reasons: &mut Vec<String>) -> bool {
@@ -539,20 +575,21 @@ impl Context<'_, '_> {
     fn say_gain(&self, reasons: &mut Vec<String>) {
         let rmse = rms(self.r.heldout.iter().copied());
         for t in self.play_free {
-            let verb = if beats(self.r, t) {
+            let verb = if beats(self.r, t, self.needed_z()) {
                 "beats"
             } else {
                 "does not beat"
             };
             reasons.push(format!(
                 "with the gap the held-out error is {} and {verb} the {} model's {} ({:+.1}%, \
-                 Diebold-Mariano z {:.2}; at least {:.0}% and z {MIN_Z} are needed)",
+                 Diebold-Mariano z {:.2}; at least {:.0}% and z {} are needed)",
                 g(rmse),
                 t.model,
                 g(t.heldout_rmse),
                 100.0 * (rmse / t.heldout_rmse - 1.0),
                 t.z,
-                100.0 * MIN_GAIN
+                100.0 * MIN_GAIN,
+                self.needed_z()
             ));
         }
         if self.play_free.is_empty() {
@@ -563,15 +600,36 @@ impl Context<'_, '_> {
         }
     }
 
-    /// Enough reversals cross the play, on both parts.
+    /// Enough reversals cross the play, on both parts: [`MIN_REVERSALS`] and [`MIN_HELDOUT_REVERSALS`], or
+    /// [`FEW_REVERSALS`] and [`FEW_HELDOUT_REVERSALS`] with a held-out gain significant at
+    /// [`FEW_REVERSALS_Z`] against every play-free model.
     fn crossed(&self, reasons: &mut Vec<String>) -> bool {
         let [fit, held] = self.reversals;
-        let ok = fit >= MIN_REVERSALS && held >= MIN_HELDOUT_REVERSALS;
-        reasons.push(format!(
+        let enough = fit >= MIN_REVERSALS && held >= MIN_HELDOUT_REVERSALS;
+        let few = fit >= FEW_REVERSALS && held >= FEW_HELDOUT_REVERSALS;
+        let weakest = self
+            .play_free
+            .iter()
+            .map(|t| t.z)
+            .fold(f64::INFINITY, f64::min);
+        let strong = !self.play_free.is_empty() && weakest >= FEW_REVERSALS_Z;
+        let mut why = format!(
             "{fit} reversals of the linear block's output cross the play on the fit part and {held} on the \
-             held-out part (at least {MIN_REVERSALS} and {MIN_HELDOUT_REVERSALS} are needed)"
-        ));
-        ok
+             held-out part ({MIN_REVERSALS} and {MIN_HELDOUT_REVERSALS} are enough"
+        );
+        if !enough && few {
+            why += &format!(
+                "; with {FEW_REVERSALS} to {MIN_REVERSALS} and {FEW_HELDOUT_REVERSALS} to \
+                 {MIN_HELDOUT_REVERSALS} the gain must reach z {FEW_REVERSALS_Z} against every play-free \
+                 model: the weakest is {weakest:.2}"
+            );
+        } else if !enough {
+            why += &format!(
+                "; at least {FEW_REVERSALS} and {FEW_HELDOUT_REVERSALS} with a stronger gain"
+            );
+        }
+        reasons.push(why + ")");
+        enough || (few && strong)
     }
 
     /// The plays of the fit part's two halves, each refitted from the final model, with their standard
@@ -683,6 +741,7 @@ impl Context<'_, '_> {
         let experiment = (presence == Presence::Undetermined).then(|| self.experiment(gain));
         BacklashSupport {
             presence,
+            model: r.name.clone(),
             supported: presence == Presence::Present,
             reasons: Vec::new(),
             play: r.play,
