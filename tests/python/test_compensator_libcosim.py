@@ -26,7 +26,6 @@ import json
 import subprocess
 
 import numpy as np
-import pytest
 
 from test_compensator_fmpy import PAPER, WARMUP, _invertible, compensator_fmu  # noqa: F401 (a fixture)
 
@@ -36,17 +35,15 @@ BACKLASH = ["m2", "c1", "c2"]
 
 
 class _Master:
-    """The three slaves in one libcosim execution, the connections, the override and a last-value observer."""
+    """The three slaves in one libcosim execution, the connection, the override and a last-value observer."""
 
     def __init__(self, plant_fmu, estimator_fmu, compensator_fmu, noise_std, memory):
-        lc = pytest.importorskip("libcosimpy")
         from libcosimpy.CosimExecution import CosimExecution
         from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
         from libcosimpy.CosimManipulator import CosimManipulator
         from libcosimpy.CosimObserver import CosimObserver
         from libcosimpy.CosimSlave import CosimLocalSlave
 
-        assert lc
         log_output_level(CosimLogLevel.ERROR)
         self.ex = CosimExecution.from_step_size(NS // 2)
         self.idx, self.vr = {}, {}
