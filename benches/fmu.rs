@@ -12,12 +12,15 @@
 //! - the same with `refine = true`, getting the six estimates and their six standard errors (the instance runs
 //!   on over the iterations, so this is the recursion's steady state after its start in the first);
 //! - the pair: plant get y(k), set u(k); estimator set u(k), y(k); both doStep; estimator get the six
-//!   estimates.
+//!   estimates;
+//! - the compensator FMU alone: set r, m2, c1, c2 (the paper's backlash), get v, doStep; and the library's
+//!   `BacklashInverse::commit` on the same references, in-process.
 //!
 //! The FMI cost of a step is the FMU figure minus the library's share, measured in the same run.
 
+use backlash::compensate::BacklashInverse;
 use backlash::identify::mrgia::{Mrgia, MrgiaConfig, paper_input};
-use backlash::plant::{Plant, PlantParams};
+use backlash::plant::{BacklashParams, Plant, PlantParams};
 use criterion::measurement::WallTime;
 use criterion::{
     BatchSize, BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main,
@@ -143,6 +146,7 @@ fn fmu_step(c: &mut Criterion) {
     estimator_alone(&mut g, &fmus, &u, &y);
     estimator_refine(&mut g, &fmus, &u, &y);
     pair(&mut g, &fmus, &u);
+    compensator(&mut g, &u);
     g.finish();
 }
 
@@ -259,6 +263,44 @@ fn pair(g: &mut Group, fmus: &Fmus, u: &[f64]) {
             }
             out[0]
         })
+    });
+}
+
+/// The compensator FMU alone (set r and the estimate, get v, doStep) and the library's inverse it wraps, on
+/// the paper input as the reference.
+fn compensator(g: &mut Group, r: &[f64]) {
+    let import: Fmi2Import =
+        fmi::import::from_path(fmu("BacklashCompensator")).expect("BacklashCompensator.fmu loads");
+    let inputs: Vec<u32> = ["r", "m2", "c1", "c2"]
+        .iter()
+        .map(|n| vr(&import, n))
+        .collect();
+    let v = vr(&import, "v");
+    let p = BacklashParams::PAPER;
+    let mut comp = Slave::new(&import, "compensator");
+    g.bench_function("compensator FMU: set r m2 c1 c2, get v, doStep", |b| {
+        b.iter(|| {
+            let mut out = [0.0];
+            for &rk in r {
+                comp.inst
+                    .set_real(&inputs, &[black_box(rk), p.m2, p.c1, p.c2])
+                    .unwrap();
+                comp.inst.get_real(&[v], &mut out).unwrap();
+                comp.step();
+            }
+            out[0]
+        })
+    });
+    g.bench_function("library backlash inverse commit, no FMI", |b| {
+        b.iter_batched(
+            || BacklashInverse::new(0.0).unwrap(),
+            |mut inv| {
+                r.iter()
+                    .map(|&rk| inv.commit(black_box(rk), &p).v)
+                    .sum::<f64>()
+            },
+            BatchSize::SmallInput,
+        )
     });
 }
 

@@ -3,12 +3,16 @@
 //!
 //! `cargo bench --bench throughput`; the FMU step costs are in `cargo bench --bench fmu`.
 
+use backlash::compensate::BacklashInverse;
+use backlash::compensate::adaptive::{
+    Controller, LoopSettings, Mode, Wear, low_pass_reference, simulate,
+};
 use backlash::identify::frequency::{FrequencyOptions, SineRecord, estimate};
 use backlash::identify::mrgia::{Mrgia, MrgiaConfig, paper_input};
 use backlash::identify::oe::online::Refined;
 use backlash::plant::{
-    BacklashParams, ContinuousLinear, Plant, PlantParams, PolyBacklash, PolyBacklashParams,
-    TransferFunction,
+    ArxParams, BacklashParams, ContinuousLinear, Plant, PlantParams, PolyBacklash,
+    PolyBacklashParams, TransferFunction,
 };
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
@@ -170,5 +174,59 @@ fn frequency(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, plant_and_backlash, mrgia, frequency);
+/// The compensator's cost per sample against the plant's step, in the same group: the backlash inverse alone
+/// (what BacklashCompensator.fmu computes), and the adaptive loop's controller (inverse, linear feed-forward
+/// and the refined estimator's update: `Controller::input` then `observe`) on a recorded loop's u and y.
+fn compensate(c: &mut Criterion) {
+    let r = low_pass_reference(N, 1.5, 1);
+    let s = LoopSettings::for_structure(&ArxParams::PAPER, Some(500.0), 0.0);
+    let plant = PlantParams {
+        noise_std: 1.5 / 43.0,
+        ..PlantParams::PAPER
+    };
+    let run = simulate(&r, &plant, Wear::None, Mode::Adaptive, &s).unwrap();
+    let mut g = c.benchmark_group("compensate");
+    g.throughput(Throughput::Elements(N as u64));
+    g.bench_function("plant step (paper 000), baseline", |b| {
+        b.iter_batched(
+            || Plant::new(PlantParams::PAPER).unwrap(),
+            |mut p| {
+                for &uk in &r {
+                    p.advance(black_box(uk));
+                }
+                p.output().y
+            },
+            BatchSize::SmallInput,
+        )
+    });
+    g.bench_function("backlash inverse commit", |b| {
+        b.iter_batched(
+            || BacklashInverse::new(0.0).unwrap(),
+            |mut inv| {
+                let p = BacklashParams::PAPER;
+                r.iter()
+                    .map(|&rk| inv.commit(black_box(rk), black_box(&p)).v)
+                    .sum::<f64>()
+            },
+            BatchSize::SmallInput,
+        )
+    });
+    g.bench_function("adaptive controller: input + observe (refine)", |b| {
+        b.iter_batched(
+            || Controller::adaptive(&s).unwrap(),
+            |mut ctl| {
+                let mut acc = 0.0;
+                for ((&rk, &uk), &yk) in r.iter().zip(&run.u).zip(&run.y) {
+                    acc += ctl.input(black_box(rk));
+                    ctl.observe(uk, yk);
+                }
+                acc
+            },
+            BatchSize::SmallInput,
+        )
+    });
+    g.finish();
+}
+
+criterion_group!(benches, plant_and_backlash, mrgia, frequency, compensate);
 criterion_main!(benches);

@@ -214,7 +214,7 @@ def monitor(u, y, na, nb, delay, wear_ratio=0.1, alarm_period=1e6, *, learn=2000
 
 
 def compensate(r, *, noise_std=0.0, noise_seed=0, wear="none", wear_ratio=0.5, memory=500, smoothing=0.0,
-               modes=()):
+               modes=(), estimate_lag=0):
     """The adaptive compensation loop of `backlash compensate --json` on the reference `r` (the plant output
     wanted at each sample) with the paper plant simulated: {"modes": {"none": {"rmse": ..}, "fixed": ..,
     "adaptive": .., "no-play": ..}, ...}.
@@ -222,8 +222,10 @@ def compensate(r, *, noise_std=0.0, noise_seed=0, wear="none", wear_ratio=0.5, m
     noise_std, noise_seed: the plant's measurement noise; wear: "none", "ramp" (both gaps grow linearly to
     1 + wear_ratio times their start) or "step" (at the middle); memory: the estimator's memory in samples
     (it forgets with rho_min = 1/memory, 0 for none: shorter follows wear faster and is noisier); smoothing:
-    the backlash inverse's smoothing half-width (0 = exact); modes: the names to run (empty: all).
+    the backlash inverse's smoothing half-width (0 = exact); modes: the names to run (empty: all);
+    estimate_lag: 0, or 1 for the estimate of the sample before, as a Jacobi master runs the loop
+    (`--estimate-lag`).
     """
     text = _backlash.compensate(_array(r, "r"), noise_std, noise_seed, wear, wear_ratio, float(memory),
-                                smoothing, list(modes))
+                                smoothing, list(modes), int(estimate_lag))
     return _result(text, file=None)

@@ -477,7 +477,7 @@ fn monitor(
 /// `backlash compensate` (wear "none", "ramp" or "step"; memory 0: no forgetting; modes: names, empty: all).
 #[pyfunction]
 #[pyo3(signature = (r, noise_std=0.0, noise_seed=0, wear="none", wear_ratio=0.5, memory=500.0, smoothing=0.0,
-    modes=Vec::new()))]
+    modes=Vec::new(), estimate_lag=0))]
 #[expect(
     clippy::too_many_arguments,
     reason = "the Python signature: keyword arguments with defaults"
@@ -492,6 +492,7 @@ fn compensate(
     memory: f64,
     smoothing: f64,
     modes: Vec<String>,
+    estimate_lag: usize,
 ) -> PyResult<String> {
     use backlash::compensate::adaptive::Wear;
     let wear = match wear {
@@ -512,6 +513,7 @@ fn compensate(
             wear,
             memory: (memory != 0.0).then_some(memory),
             smoothing,
+            estimate_lag,
             ..api::CompensateOptions::default()
         };
         if !modes.is_empty() {

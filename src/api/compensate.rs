@@ -15,6 +15,9 @@ pub struct CompensateOptions {
     /// The estimator's memory in samples (None: no forgetting).
     pub memory: Option<f64>,
     pub smoothing: f64,
+    /// Samples by which the estimate the adaptive inverses use lags the latest: 0 or 1
+    /// ([`LoopSettings::estimate_lag`]).
+    pub estimate_lag: usize,
     pub modes: Vec<Mode>,
 }
 
@@ -26,6 +29,7 @@ impl Default for CompensateOptions {
             wear: Wear::None,
             memory: Some(500.0),
             smoothing: 0.0,
+            estimate_lag: 0,
             modes: Mode::ALL.to_vec(),
         }
     }
@@ -59,7 +63,10 @@ pub fn compensate(r: &[f64], o: &CompensateOptions) -> Result<(Vec<LoopRun>, Val
         ..PlantParams::PAPER
     };
     let a = &plant.arx;
-    let s = LoopSettings::for_structure(a, o.memory, o.smoothing);
+    let s = LoopSettings {
+        estimate_lag: o.estimate_lag,
+        ..LoopSettings::for_structure(a, o.memory, o.smoothing)
+    };
     let runs = o
         .modes
         .iter()
@@ -78,6 +85,7 @@ pub fn compensate(r: &[f64], o: &CompensateOptions) -> Result<(Vec<LoopRun>, Val
         "memory": o.memory,
         "rho_min": o.memory.map(|n| 1.0 / n),
         "smoothing": o.smoothing,
+        "estimate_lag": o.estimate_lag,
         "modes": modes,
     });
     Ok((runs, out))

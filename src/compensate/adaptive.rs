@@ -24,6 +24,12 @@
 //! the last linear estimate that passed (at first the estimator's theta(0): x(k) = u(k - d)) and counts the
 //! samples in [`LoopRun::refused_linear`]. A plant whose true B is not minimum phase is not compensated by
 //! this loop (its estimates are refused throughout); that needs a feedback design.
+//!
+//! **Estimate lag.** With [`LoopSettings::estimate_lag`] 0 the inverses at sample k use the estimate after
+//! samples 0..k-1 (the latest). With 1 they use the estimate of the sample before (after 0..k-2): what a
+//! master that passes values between units only at communication points (a Jacobi master: libcosim's
+//! fixed step, FMPy's SSP and container) delivers, since the estimate of sample k appears at t_k, the
+//! instant the plant takes u(k), and the compensator needs a step to answer for it.
 
 use super::inverse::BacklashInverse;
 use crate::identify::mrgia::MrgiaConfig;
@@ -77,6 +83,10 @@ pub enum LoopError {
     Param(#[from] ParamError),
     #[error("the reference is empty")]
     Empty,
+    #[error(
+        "estimate lag {0} is invalid: 0 (the latest estimate) or 1 (the estimate of the sample before)"
+    )]
+    EstimateLag(usize),
 }
 
 /// The estimator's structure and the loop's own settings.
@@ -89,6 +99,9 @@ pub struct LoopSettings {
     pub memory: Option<f64>,
     /// The backlash inverse's smoothing half-width (0 = exact).
     pub smoothing: f64,
+    /// Samples by which the estimate the inverses use lags the latest: 0 or 1 (module docs).
+    #[serde(default)]
+    pub estimate_lag: usize,
 }
 
 impl LoopSettings {
@@ -100,6 +113,7 @@ impl LoopSettings {
             delay: arx.delay,
             memory,
             smoothing,
+            estimate_lag: 0,
         }
     }
 
@@ -174,6 +188,9 @@ pub struct Controller {
     /// The backlash to invert; None: no backlash inverse (v = r).
     backlash: Option<BacklashParams>,
     est: Option<OnlineEstimator>,
+    /// With an estimate lag of 1: the estimate before the estimator's last update.
+    lagged: Option<(ArxParams, BacklashParams)>,
+    lag: usize,
     /// Samples the estimator has seen.
     seen: usize,
     degenerate: usize,
@@ -194,6 +211,8 @@ impl Controller {
             linear,
             backlash,
             est: None,
+            lagged: None,
+            lag: 0,
             seen: 0,
             degenerate: 0,
             refused_linear: 0,
@@ -202,6 +221,9 @@ impl Controller {
 
     /// Inverses from the on-line estimates (module docs).
     pub fn adaptive(s: &LoopSettings) -> Result<Self, LoopError> {
+        if s.estimate_lag > 1 {
+            return Err(LoopError::EstimateLag(s.estimate_lag));
+        }
         let est = OnlineEstimator::new(s.estimator_config()?, true)?;
         let mut b = [0.0; MAX_ORDER + 1];
         b[0] = 1.0;
@@ -214,6 +236,7 @@ impl Controller {
         };
         let mut c = Self::fixed(start, None, s.smoothing)?;
         c.est = Some(est);
+        c.lag = s.estimate_lag;
         Ok(c)
     }
 
@@ -242,7 +265,7 @@ impl Controller {
         // During the estimator's warm-up the inverse runs (its memory follows) but its v is not used.
         let warm = self.est.is_some() && self.seen < WARMUP;
         if let Some(e) = &self.est {
-            let (m, p) = self.estimate(e);
+            let (m, p) = self.lagged.unwrap_or_else(|| self.estimate(e));
             if !warm && invertible(&m) {
                 self.linear = m;
             } else if !warm {
@@ -263,6 +286,11 @@ impl Controller {
 
     /// The plant's answer to u(k): the estimator (if any) learns from the pair.
     pub fn observe(&mut self, u: f64, y: f64) {
+        if let Some(e) = &self.est
+            && self.lag == 1
+        {
+            self.lagged = Some(self.estimate(e));
+        }
         if let Some(e) = &mut self.est {
             e.update(u, y);
             self.seen += 1;
@@ -312,6 +340,9 @@ pub struct LoopRun {
     /// RMS of y - r over the record, and over its last quarter (after the wear).
     pub rmse: f64,
     pub rmse_last_quarter: f64,
+    /// RMS of f - r over the last quarter, f the plant's noise-free output: the tracking error without the
+    /// measurement noise that y carries (the floor of `rmse_last_quarter` is the noise's std).
+    pub rmse_clean_last_quarter: f64,
     /// Samples whose backlash estimate was degenerate, and whose linear estimate the feed-forward refused.
     pub degenerate: usize,
     pub refused_linear: usize,
@@ -354,6 +385,7 @@ pub fn simulate(
     // The reference d samples ahead: the delay of the plant's (and the estimator's) structure.
     let d = plant.arx.delay;
     let (mut u, mut y) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let mut clean = Vec::with_capacity(n);
     for k in 0..n {
         let f = wear.factor(k, n);
         let b = params.backlash;
@@ -363,17 +395,19 @@ pub fn simulate(
             ..b
         })?;
         let uk = c.input(r[(k + d).min(n - 1)]);
-        let yk = p.output().y;
-        c.observe(uk, yk);
+        let out = p.output();
+        c.observe(uk, out.y);
         p.advance(uk);
         u.push(uk);
-        y.push(yk);
+        y.push(out.y);
+        clean.push(out.f);
     }
     let q = n - n / 4;
     Ok(LoopRun {
         mode,
         rmse: rms_diff(&y, r),
         rmse_last_quarter: rms_diff(&y[q..], &r[q..]),
+        rmse_clean_last_quarter: rms_diff(&clean[q..], &r[q..]),
         u,
         y,
         degenerate: c.degenerate,

@@ -99,3 +99,60 @@ fn wear_factors() {
     assert_eq!(Wear::Step { ratio: 0.5 }.factor(50, 100), 1.5);
     assert_eq!(Wear::None.factor(99, 100), 1.0);
 }
+
+/// The estimate lag of a Jacobi master: lag 1 uses the estimate of the sample before (its first samples
+/// equal lag 0's, which see the same theta(0) through the warm-up; then the runs part), still follows the
+/// wear as the issue asks, and a lag above 1 is refused in words.
+#[test]
+fn an_estimate_lag_of_one_sample_follows_wear_too() {
+    let r = low_pass_reference(8000, 1.5, 2);
+    let wear = Wear::Step { ratio: 0.5 };
+    let at = |lag| {
+        let s = LoopSettings {
+            estimate_lag: lag,
+            ..settings(Some(500.0), 0.0)
+        };
+        simulate(&r, &noisy(0.02), wear, Mode::Adaptive, &s)
+    };
+    let (l0, l1) = (at(0).unwrap(), at(1).unwrap());
+    assert_eq!(l0.y[..WARMUP + 1], l1.y[..WARMUP + 1]);
+    assert_ne!(l0.y, l1.y);
+    let free = simulate(
+        &r,
+        &noisy(0.02),
+        wear,
+        Mode::NoPlay,
+        &settings(Some(500.0), 0.0),
+    )
+    .unwrap();
+    let (a, n) = (l1.rmse_last_quarter, free.rmse_last_quarter);
+    assert!(a < 1.3 * n, "lag 1 {a}, no play {n}");
+    assert!((a / l0.rmse_last_quarter - 1.0).abs() < 0.05, "{a}");
+    let e = at(2).unwrap_err().to_string();
+    assert!(e.contains("estimate lag 2 is invalid: 0"), "{e}");
+}
+
+/// The noise-free output's error is below y's, whose floor is the noise: with noise std sigma and the true
+/// plant, the no-play loop's f tracks r to rounding and y's error is about sigma.
+#[test]
+fn the_noise_free_error_leaves_out_the_noise() {
+    let r = low_pass_reference(4000, 1.5, 3);
+    let run = simulate(
+        &r,
+        &noisy(0.1),
+        Wear::None,
+        Mode::NoPlay,
+        &settings(None, 0.0),
+    )
+    .unwrap();
+    assert!(
+        run.rmse_clean_last_quarter < 1e-9,
+        "{}",
+        run.rmse_clean_last_quarter
+    );
+    assert!(
+        (run.rmse_last_quarter / 0.1 - 1.0).abs() < 0.1,
+        "{}",
+        run.rmse_last_quarter
+    );
+}

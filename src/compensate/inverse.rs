@@ -207,8 +207,13 @@ impl BacklashInverse {
                 (v, Direction::Down, false)
             }
         } else if lo <= hi {
-            // Hold w(k-1): v(k-1) moved into the zone of w(k-1) under the current parameters.
-            (self.v.clamp(lo, hi), self.direction, false)
+            // Hold w(k-1): v(k-1) moved into the zone of w(k-1) under the current parameters; a v(k-1) on
+            // a border up to the rounding of that border (w(k-1) computed from it) stays as it was, so
+            // that a held reference and estimate answer the same v bit for bit.
+            let slack = ROUNDING * (1.0 + self.v.abs());
+            let inside = (lo - slack..=hi + slack).contains(&self.v);
+            let v = if inside { self.v } else { self.v.clamp(lo, hi) };
+            (v, self.direction, false)
         } else {
             (
                 self.nearest_at_crossing(target, q, hi),

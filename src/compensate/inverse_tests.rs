@@ -64,6 +64,22 @@ proptest! {
         }
     }
 
+    /// Committing a reference and asking again for the same reference and estimate answers the committed v
+    /// bit for bit (what a master reads after the step that committed it), with or without smoothing.
+    #[test]
+    fn a_held_reference_answers_the_committed_v(
+        p in params(),
+        s in prop_oneof![Just(0.0), 0.0..0.5f64],
+        r in proptest::collection::vec(-5.0..5.0f64, 1..200),
+    ) {
+        let mut inv = BacklashInverse::new(s).unwrap();
+        for &rk in &r {
+            let v = inv.commit(rk, &p).v;
+            prop_assert_eq!(inv.evaluate(rk, &p).v, v, "r {}", rk);
+            prop_assert_eq!(inv.commit(rk, &p).v, v, "r {}", rk);
+        }
+    }
+
     /// With smoothing s the output is never further than s from the reference.
     #[test]
     fn smoothing_costs_at_most_its_width(

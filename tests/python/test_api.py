@@ -178,6 +178,13 @@ def test_compensate_equals_the_program(cli, tmp_path):
     assert api["modes"]["adaptive"]["rmse_last_quarter"] < 0.2 * api["modes"]["fixed"]["rmse_last_quarter"]
     with pytest.raises(ValueError, match="wear 'sudden' is unknown"):
         backlash_fmu.compensate(r, wear="sudden")
+    # The estimate of the sample before (a Jacobi master's loop): the program's --estimate-lag.
+    lagged = backlash_fmu.compensate(r, noise_std=0.02, wear="step", memory=300, modes=["adaptive"], estimate_lag=1)
+    _same(lagged, _cli_json(cli, "compensate", path, "--noise-std", 0.02, "--wear", "step", "--memory", 300,
+                            "--modes", "adaptive", "--estimate-lag", 1))
+    assert lagged["estimate_lag"] == 1 and lagged["modes"]["adaptive"] != api["modes"]["adaptive"]
+    with pytest.raises(ValueError, match="estimate lag 2 is invalid"):
+        backlash_fmu.compensate(r, estimate_lag=2)
 
 
 def test_fmu_path_names_what_it_has():

@@ -38,6 +38,10 @@ pub struct CompensateArgs {
     /// noise standard deviations of a noisy reference.
     #[arg(long, default_value_t = 0.0)]
     pub smoothing: f64,
+    /// Samples by which the estimate the adaptive inverses use lags the latest: 0, or 1 as in a master that
+    /// passes values between units only at communication points (libcosim, FMPy's SSP).
+    #[arg(long, default_value_t = 0)]
+    pub estimate_lag: usize,
     /// Modes to run, comma-separated: none, fixed, adaptive, no-play [default: all].
     #[arg(long, value_delimiter = ',')]
     pub modes: Vec<String>,
@@ -68,6 +72,7 @@ fn options(a: &CompensateArgs) -> Result<CompensateOptions> {
         wear,
         memory: (a.memory != 0.0).then_some(a.memory),
         smoothing: a.smoothing,
+        estimate_lag: a.estimate_lag,
         ..CompensateOptions::default()
     };
     if !a.modes.is_empty() {
