@@ -16,7 +16,8 @@
 //!   [`MIN_HELDOUT_REVERSALS`] on the held-out part (or [`FEW_REVERSALS`] and [`FEW_HELDOUT_REVERSALS`], a
 //!   periodic test of a few periods, with every gain at [`FEW_REVERSALS_Z`]); the record determines every
 //!   parameter of the model; the two halves of the fit part give plays that agree.
-//! - **Absent** needs: no gain from the gap, the play not significantly above zero, a bound (the largest
+//! - **Absent** needs: no gain from the gap, the play not significantly above zero, a model the record
+//!   determines, no friction element (itself a play), a bound (the largest
 //!   play the record does not rule out at 95%, checked on the play's profile) narrower than
 //!   [`MAX_BOUND_SHARE`] of the travel, and at least [`MIN_ABSENT_REVERSALS`] reversals crossing it.
 //! - Anything else is **undetermined**, and so is every impossible estimate (a negative gap, a play wider
@@ -39,13 +40,13 @@ pub const MIN_Z: f64 = 1.645;
 pub const MIN_REVERSALS: usize = 20;
 /// ... and on the held-out part, which judges the gain.
 pub const MIN_HELDOUT_REVERSALS: usize = 5;
-/// Fewer crossing reversals than [`MIN_REVERSALS`], down to this many on the fit part (five periods of a
-/// sine test) ...
-pub const FEW_REVERSALS: usize = 10;
+/// Fewer crossing reversals than [`MIN_REVERSALS`], down to this many on the fit part (four periods of a
+/// sine test: a test of seven periods keeps them at every fit fraction from 0.6 to 0.8) ...
+pub const FEW_REVERSALS: usize = 8;
 /// ... and this many on the held-out part, still allow `present` when the gap's held-out gain over every
 /// play-free model is significant at [`FEW_REVERSALS_Z`]: each reversal of a periodic test repeats the
 /// same dwell over many samples, but a few events make the test's own error larger than its z assumes.
-pub const FEW_HELDOUT_REVERSALS: usize = 3;
+pub const FEW_HELDOUT_REVERSALS: usize = 2;
 /// The one-sided z (0.1%) the held-out gain needs when the reversals are few.
 pub const FEW_REVERSALS_Z: f64 = 3.09;
 /// What the verdict stands on unless a rival with play predicts better.
@@ -451,7 +452,7 @@ impl Context<'_, '_> {
             return self.answer(Presence::Present, None, halves);
         }
         let friction = self.friction_reads_as_play(reasons);
-        let bound = (!impossible && !gains && !significant && !friction)
+        let bound = (!impossible && !gains && !significant && !friction && identified)
             .then(|| self.bound(reasons))
             .flatten();
         if let Some(b) = bound {
@@ -471,8 +472,12 @@ impl Context<'_, '_> {
                     .into(),
             ),
             (
-                !gains && !significant && !friction,
+                !gains && !significant && !friction && identified,
                 "no bound on the play could be established (see the reasons)".into(),
+            ),
+            (
+                !identified,
+                "the record does not determine every parameter of the model (see the reasons)".into(),
             ),
             (
                 friction,
@@ -486,7 +491,7 @@ impl Context<'_, '_> {
                 ),
             ),
             (
-                significant && gains && crossed && !impossible,
+                significant && gains && crossed && !impossible && identified,
                 "the two halves of the fit part do not confirm the play (see the reasons)".into(),
             ),
         ]
