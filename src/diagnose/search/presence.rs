@@ -22,6 +22,8 @@ use crate::diagnose::fit::model::{EffectModel, Objective, Rest, Simulation};
 use crate::diagnose::fit::problem::Problem;
 use crate::diagnose::fit::starts::StartContext;
 use crate::diagnose::residual::{self, statistics::diebold_mariano};
+// A number in a sentence: the rule of the text output and the report, so that the three print it alike.
+use crate::report::number as g;
 use crate::stats::{quantile, rms};
 
 /// The least relative fall of the held-out error that the gap must bring against every play-free model.
@@ -411,16 +413,6 @@ struct Context<'a, 'p> {
     r: &'a Reading,
     play_free: &'a [PlayFree],
     reversals: [usize; 2],
-}
-
-/// A number in a sentence: four decimals, or four significant digits in scientific form where those would
-/// hide it.
-fn g(v: f64) -> String {
-    if v == 0.0 || (0.01..1e5).contains(&v.abs()) {
-        format!("{v:.4}")
-    } else {
-        format!("{v:.3e}")
-    }
 }
 
 impl Context<'_, '_> {
