@@ -54,7 +54,8 @@ pub const CHI2_95: f64 = 3.84;
 /// How the standard errors are computed, as the answer names it.
 pub const SE_METHOD: &str = "Newey-West sandwich of the fit-part simulation errors (Bartlett window out to the \
     residual's first white lag): holds when the residuals are autocorrelated, where the information matrix alone \
-    claims too much";
+    claims too much; plus the noise of the level the play is measured at (the record's first output sample), \
+    which moves the play by 1/m1 - 1/m2 per unit where the borders' slopes differ";
 
 /// The three answers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -164,7 +165,7 @@ fn read(p: &Problem, last: &EffectModel) -> Option<Reading> {
     let model = last.deterministic();
     let sim = model.simulate(p.u, p.rest, p.u.len(), p.limit)?;
     let heldout = errors(p, &sim);
-    let var = p.combination_variance(&model, &model.play_weights(p.time_scale));
+    let var = p.play_variance(&model);
     let x_fit = &sim.x[..p.n_fit];
     let travel = quantile(x_fit, 0.99).unwrap_or(0.0) - quantile(x_fit, 0.01).unwrap_or(0.0);
     Some(Reading {
