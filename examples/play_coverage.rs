@@ -53,13 +53,22 @@ struct Cli {
     /// spread of the estimate over noise draws against its standard error.
     #[arg(long)]
     plant: Option<u64>,
+    /// The AR(1) coefficient of the noise, drawn uniformly in LO..HI (0..0: white noise).
+    #[arg(long, default_value = "0.5..0.9")]
+    phi: String,
     /// One line per record (CSV).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// A folder for each diagnosis's JSON (SEED-NOISE.json).
+    #[arg(long)]
+    json: Option<PathBuf>,
 }
 
 /// The noise levels: std(noise-free output) / noise std.
 const SNR: [f64; 2] = [30.0, 10.0];
+/// A final model whose held-out RMSE is below this many noise standard deviations fits at the noise level
+/// (the true model's is about 1): above it, the fit ended away from the optimum.
+const AT_NOISE: f64 = 1.2;
 /// The two-sided 95% point of the normal distribution, as the interval is read.
 const Z95: f64 = 1.96;
 
@@ -78,6 +87,11 @@ struct Row {
     se_white: Option<f64>,
     presence: Presence,
     effects: String,
+    /// The final model's held-out RMSE over the noise's standard deviation (about 1 at the true model).
+    excess: f64,
+    /// The chosen structure (na, nb, delay) and the plain model's play (before any effect).
+    structure: (usize, usize, usize),
+    plain_play: f64,
     what: String,
 }
 
@@ -90,6 +104,7 @@ impl Row {
 
 fn main() -> Result<()> {
     let cli = Cli::parse();
+    let phi = parse_range(&cli.phi)?;
     let start = Instant::now();
     let done = AtomicUsize::new(0);
     let rows: Vec<Row> = (0..cli.records as u64)
@@ -97,8 +112,8 @@ fn main() -> Result<()> {
         .map(|i| {
             let seed = cli.first + i;
             let row = match cli.plant {
-                Some(plant) => record(plant, seed, cli.samples),
-                None => record(seed, seed ^ 0x5EED, cli.samples),
+                Some(plant) => record(plant, seed, cli.samples, phi, cli.json.as_deref()),
+                None => record(seed, seed ^ 0x5EED, cli.samples, phi, cli.json.as_deref()),
             };
             let k = done.fetch_add(1, Ordering::Relaxed) + 1;
             eprintln!(
@@ -124,7 +139,7 @@ fn main() -> Result<()> {
 }
 
 /// The plant and noise level of record `seed`, simulated with the noise draw `noise` and diagnosed.
-fn record(seed: u64, noise: u64, n: usize) -> Row {
+fn record(seed: u64, noise: u64, n: usize, (lo, hi): (f64, f64), json: Option<&Path>) -> Row {
     let mut d = Draw(ChaCha8Rng::seed_from_u64(seed));
     let u = paper_input(n, seed);
     let arx = linear_block(&mut d);
@@ -134,7 +149,7 @@ fn record(seed: u64, noise: u64, n: usize) -> Row {
         .collect();
     let share = d.uniform(0.05, 0.25);
     let bl = backlash_of(&mut d, share * travel(&x));
-    let phi = d.uniform(0.5, 0.9);
+    let phi = d.uniform(lo, hi);
     let snr = SNR[(seed % 2) as usize];
     let effects = Effects {
         coloured_noise: Some(ColouredNoise { phi }),
@@ -155,6 +170,11 @@ fn record(seed: u64, noise: u64, n: usize) -> Row {
         .map(|o| o.y)
         .collect();
     let diag = diagnose(&u, &y, &DiagnoseConfig::auto()).expect("the record is valid");
+    if let Some(dir) = json {
+        let path = dir.join(format!("{seed}-{noise}.json"));
+        let text = serde_json::to_string_pretty(&diag.to_json(None)).expect("JSON");
+        std::fs::write(&path, text).unwrap_or_else(|e| panic!("writing {}: {e}", path.display()));
+    }
     let b = &diag.backlash;
     Row {
         seed,
@@ -174,11 +194,33 @@ fn record(seed: u64, noise: u64, n: usize) -> Row {
             .map(|c| c.id.to_string())
             .collect::<Vec<_>>()
             .join(" + "),
+        structure: (
+            diag.structure.chosen.na,
+            diag.structure.chosen.nb,
+            diag.structure.chosen.delay,
+        ),
+        plain_play: diag.base.play(),
+        excess: b.heldout_rmse / params.noise_std,
         what: format!(
             "a {:.3} {:.3}, b0 {:.3}, delay {}; m1 {:.3}, m2 {:.3}, c1 {:.4}, c2 {:.4}",
             arx.a[0], arx.a[1], arx.b[0], arx.delay, bl.m1, bl.m2, bl.c1, bl.c2
         ),
     }
+}
+
+/// `LO..HI` as two numbers, each in (-1, 1).
+fn parse_range(text: &str) -> Result<(f64, f64)> {
+    let (a, b) = text
+        .split_once("..")
+        .with_context(|| format!("--phi {text}: expected LO..HI, e.g. 0.5..0.9"))?;
+    let parse = |v: &str| -> Result<f64> {
+        let x: f64 = v
+            .parse()
+            .with_context(|| format!("--phi: '{v}' is not a number"))?;
+        anyhow::ensure!(x.abs() < 1.0, "--phi: {x} is not between -1 and 1");
+        Ok(x)
+    };
+    Ok((parse(a)?, parse(b)?))
 }
 
 /// Coverage of one group of rows with one standard error: "covered / with se (percent)".
@@ -225,6 +267,14 @@ fn summary(rows: &[Row]) -> String {
     for p in [Presence::Present, Presence::Absent, Presence::Undetermined] {
         line(format!("{p:?}"), &|r| r.presence == p);
     }
+    line(
+        format!("held-out RMSE below {AT_NOISE} noise std (a fit at the optimum)"),
+        &|r| r.excess < AT_NOISE,
+    );
+    line(
+        format!("held-out RMSE at least {AT_NOISE} noise std (a fit elsewhere)"),
+        &|r| r.excess >= AT_NOISE,
+    );
     line("final model plain".into(), &|r| r.effects.is_empty());
     line("final model with effects".into(), &|r| {
         !r.effects.is_empty()
@@ -243,14 +293,14 @@ fn write_csv(path: &Path, rows: &[Row]) -> std::io::Result<()> {
     writeln!(
         f,
         "seed,noise_seed,snr,phi,true_play,true_share,true_crossings,play,play_se,play_se_white,covered,\
-         covered_white,presence,effects,plant"
+         covered_white,presence,effects,structure,plain_play,heldout_over_noise,plant"
     )?;
     let opt = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.6}"));
     let flag = |v: Option<bool>| v.map_or(String::new(), |c| c.to_string());
     for r in rows {
         writeln!(
             f,
-            "{},{},{},{:.3},{:.6},{:.4},{},{:.6},{},{},{},{},{:?},{},{}",
+            "{},{},{},{:.3},{:.6},{:.4},{},{:.6},{},{},{},{},{:?},{},{} {} {},{:.6},{:.3},{}",
             r.seed,
             r.noise,
             r.snr,
@@ -265,6 +315,11 @@ fn write_csv(path: &Path, rows: &[Row]) -> std::io::Result<()> {
             flag(r.covers(r.se_white)),
             r.presence,
             field(&r.effects),
+            r.structure.0,
+            r.structure.1,
+            r.structure.2,
+            r.plain_play,
+            r.excess,
             field(&r.what),
         )?;
     }
