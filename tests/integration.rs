@@ -16,6 +16,7 @@ mod records_found;
 
 mod cli_records;
 mod cli_stream;
+mod diagnose_agree;
 mod diagnose_hostile;
 mod diagnose_input_evidence;
 mod diagnose_structure;

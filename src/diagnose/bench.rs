@@ -318,14 +318,14 @@ mod tests {
                 assert_evidence_of(&s, &d, "No extension passed both criteria");
             }
             // The paper plant's play (c1 + c2 = 1.5) is present in every clean record; where the final model is
-            // the plain one, the true play lies within 6 standard errors or 0.05 (3%) of the estimate (since the
-            // fits work about the operating point two seeds of the 20 are further off than their standard
-            // errors say: 20002 by 0.0115 (5.3 of them), 20008 by 0.036 (8); a false-positive effect, such as
-            // a drift of the gaps, moves the play it reports).
+            // the plain one, the true play lies within 3 standard errors of the estimate. (The fits work about
+            // the first output sample, whose noise moves the play by (1 - 1/m2) = 1/3 of it; before the
+            // standard error counted that, seeds 20002 and 20008 were 5.3 and 8 of them off. A false-positive
+            // effect, such as a drift of the gaps, moves the play it reports.)
             assert!(d.backlash.supported, "{}: {:?}", seed, d.backlash.reasons);
             let se = d.backlash.play_se.expect("the gaps are determined");
             assert!(
-                d.effect_id().is_some() || (d.backlash.play - 1.5).abs() < (6.0 * se).max(0.05),
+                d.effect_id().is_some() || (d.backlash.play - 1.5).abs() < 3.0 * se,
                 "{seed}: play {} +/- {se}",
                 d.backlash.play
             );

@@ -29,6 +29,8 @@ use super::alternatives::{Fitted, best_rival, heldout_errors, imitators, play_fr
 use crate::diagnose::fit::model::{EffectModel, Objective, Rest, Simulation};
 use crate::diagnose::fit::problem::Problem;
 use crate::diagnose::residual::{self, statistics::diebold_mariano};
+// A number in a sentence: the rule of the text output and the report, so that the three print it alike.
+use crate::report::number as g;
 use crate::stats::{quantile, rms};
 
 /// The least relative fall of the held-out error that the gap must bring against every play-free model.
@@ -70,7 +72,8 @@ pub const CHI2_95: f64 = 3.84;
 /// How the standard errors are computed, as the answer names it.
 pub const SE_METHOD: &str = "Newey-West sandwich of the fit-part simulation errors (Bartlett window out to the \
     residual's first white lag): holds when the residuals are autocorrelated, where the information matrix alone \
-    claims too much";
+    claims too much; plus the noise of the level the play is measured at (the record's first output sample), \
+    which moves the play by 1/m1 - 1/m2 per unit where the borders' slopes differ";
 
 /// The three answers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -227,7 +230,7 @@ fn read(p: &Problem, last: &EffectModel, name: &str) -> Option<Reading> {
     let model = last.deterministic();
     let sim = model.simulate(p.u, p.rest, p.u.len(), p.limit)?;
     let heldout = heldout_errors(p, &sim);
-    let var = p.combination_variance(&model, &model.play_weights(p.time_scale));
+    let var = p.play_variance(&model);
     let x_fit = &sim.x[..p.n_fit];
     let travel = quantile(x_fit, 0.99).unwrap_or(0.0) - quantile(x_fit, 0.01).unwrap_or(0.0);
     Some(Reading {
@@ -420,16 +423,6 @@ struct Context<'a, 'p> {
     r: &'a Reading,
     play_free: &'a [PlayFree],
     reversals: [usize; 2],
-}
-
-/// A number in a sentence: four decimals, or four significant digits in scientific form where those would
-/// hide it.
-fn g(v: f64) -> String {
-    if v == 0.0 || (0.01..1e5).contains(&v.abs()) {
-        format!("{v:.4}")
-    } else {
-        format!("{v:.3e}")
-    }
 }
 
 impl Context<'_, '_> {
