@@ -140,31 +140,34 @@ pub fn linear_baseline(u: &[f64], y: &[f64], n_fit: usize) -> Option<LinearBasel
                 .flat_map(move |na| (1..=BASELINE_ORDER).map(move |nb| Structure { na, nb, delay }))
         })
         .collect();
-    let fits: Vec<Option<LinearBaseline>> = grid
+    // Each structure's free run is scored and dropped (48 outputs of a long record at once would cost more
+    // memory than the diagnosis); the best one's is run again.
+    let fits: Vec<Option<(Structure, Vec<f64>, Vec<f64>, f64, f64)>> = grid
         .par_iter()
         .map(|&s| {
             let (a, b, c) = least_squares(&p, s)?;
             let out = free_run(s, (&a, &b, c), &ud, yd[0], limit)?;
             let fit_rmse = rms_diff(&yd[..n_fit], &out[..n_fit]);
-            fit_rmse.is_finite().then(|| LinearBaseline {
-                structure: s,
-                constant: c + op.y * (1.0 + a.iter().sum::<f64>()),
-                a,
-                b,
-                fit_rmse,
-                heldout_rmse: rms_diff(&yd[n_fit..], &out[n_fit..n]),
-                not_eligible: 0,
-                output: out.iter().map(|v| v + op.y).collect(),
-            })
+            fit_rmse.is_finite().then_some((s, a, b, c, fit_rmse))
         })
         .collect();
     let not_eligible = fits.iter().filter(|f| f.is_none()).count();
     // The lowest fit-part error; a tie goes to the first in the grid (shorter delay, then fewer a's and b's).
-    let best = fits
+    let (s, a, b, c, fit_rmse) = fits
         .into_iter()
         .flatten()
-        .reduce(|m, f| if f.fit_rmse < m.fit_rmse { f } else { m });
-    best.map(|b| LinearBaseline { not_eligible, ..b })
+        .reduce(|m, f| if f.4 < m.4 { f } else { m })?;
+    let out = free_run(s, (&a, &b, c), &ud, yd[0], limit)?;
+    Some(LinearBaseline {
+        structure: s,
+        constant: c + op.y * (1.0 + a.iter().sum::<f64>()),
+        a,
+        b,
+        fit_rmse,
+        heldout_rmse: rms_diff(&yd[n_fit..], &out[n_fit..n]),
+        not_eligible,
+        output: out.iter().map(|v| v + op.y).collect(),
+    })
 }
 
 /// The baseline held against a diagnosis's final model on the fit part, at the record's own samples.
