@@ -123,6 +123,9 @@ fn least_squares(p: &Problem, s: Structure) -> Option<(Vec<f64>, Vec<f64>, f64)>
     })
 }
 
+/// One structure's least-squares fit `(structure, a, b, c)` and its fit-part free-run RMSE.
+type Scored = (Structure, Vec<f64>, Vec<f64>, f64, f64);
+
 /// The baseline of (u, y) with the first `n_fit` samples fitted; `None` when no structure of the grid can be
 /// fitted and simulated (a record too short for every one, or all diverge).
 pub fn linear_baseline(u: &[f64], y: &[f64], n_fit: usize) -> Option<LinearBaseline> {
@@ -142,7 +145,7 @@ pub fn linear_baseline(u: &[f64], y: &[f64], n_fit: usize) -> Option<LinearBasel
         .collect();
     // Each structure's free run is scored and dropped (48 outputs of a long record at once would cost more
     // memory than the diagnosis); the best one's is run again.
-    let fits: Vec<Option<(Structure, Vec<f64>, Vec<f64>, f64, f64)>> = grid
+    let fits: Vec<Option<Scored>> = grid
         .par_iter()
         .map(|&s| {
             let (a, b, c) = least_squares(&p, s)?;
