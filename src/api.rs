@@ -677,6 +677,29 @@ pub fn choose_rate(
     }
 }
 
+/// Adds the linear baseline to `diagnose`'s JSON (`linear_baseline`, see
+/// [`crate::diagnose::fit::baseline`]): the best ARX model with an intercept on `u`, `y` (the record at the rate
+/// the rate stage saw), held against the final model of `d`, which worked on it decimated by `decimate`
+/// (block means); a warning says so when the final model is behind it on the fit part.
+pub fn with_linear_baseline(
+    out: &mut Value,
+    (u, y): (&[f64], &[f64]),
+    fit_fraction: f64,
+    d: &Diagnosis,
+    decimate: usize,
+) {
+    let n_fit = fit_len(u.len().min(y.len()), fit_fraction);
+    let last = d.steps().last().map_or(&d.base_sim.y, |c| &c.output);
+    let check =
+        crate::diagnose::fit::baseline::check((u, y), n_fit, (last, d.after_rmse()), decimate);
+    if let Some(c) = check.as_ref().filter(|c| c.final_behind)
+        && let Some(w) = out["warnings"].as_array_mut()
+    {
+        w.push(json!(c.reason));
+    }
+    out["linear_baseline"] = json!(check);
+}
+
 /// Adds the rate to a command's JSON: `decimate` (the factor the record was worked at) and `rate` (how it
 /// was chosen and why).
 pub fn with_rate(out: &mut Value, rate: &Rate) {

@@ -410,11 +410,19 @@ fn diagnose(
             time_budget: api::time_budget(time_budget)?,
             ..DiagnoseConfig::auto()
         };
-        let (rate, [u, y]) = api::at_rate(u, y, decimate, fit_fraction)?;
-        let d = api::diagnose_with_progress(&u, &y, &cfg, &|s| stages.report(s))?;
+        let (rate, [u_w, y_w]) = api::at_rate(u, y, decimate, fit_fraction)?;
+        let d = api::diagnose_with_progress(&u_w, &y_w, &cfg, &|s| stages.report(s))?;
         let ts = ts.map(|t| t * rate.decimate as f64);
-        let mut out = api::diagnosis_json(&d, &u, ts, rate.decimate);
+        let mut out = api::diagnosis_json(&d, &u_w, ts, rate.decimate);
         api::with_rate(&mut out, &rate);
+        // The linear baseline at the rate the rate stage saw (the user's decimation, if any).
+        let [u_g, y_g] = api::decimated(u, y, decimate.unwrap_or(1))?;
+        let factor = if rate.chosen_by == "data" {
+            rate.decimate
+        } else {
+            1
+        };
+        api::with_linear_baseline(&mut out, (&u_g, &y_g), fit_fraction, &d, factor);
         Ok(json_text(&out))
     });
     stages.finish(r)

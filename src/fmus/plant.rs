@@ -127,6 +127,7 @@ impl Bench {
             1 => Ok(Some(DirectionDependent {
                 a: self.fall_a,
                 b: self.fall_b,
+                offset: 0.0,
             })),
             v => Err(invalid(
                 "direction_dependent",

@@ -178,12 +178,18 @@ pub struct Quantization {
 /// closing with it): the linear block has a second set of coefficients, `a`, `b` (same orders and delay),
 /// for while its output falls. At sample k the block computes `x_rise(k)` with its own coefficients and
 /// `x_fall(k)` with these over the same history; `x(k) = x_rise(k)` if that does not fall below `x(k-1)`,
-/// else `x_fall(k)` ([`DirectionDependent::choose`]). With `a`, `b` equal to the block's own the plant is
-/// the plain one. Entries beyond the block's `na` and `nb` are ignored, as in `ArxParams`.
+/// else `x_fall(k)` ([`DirectionDependent::choose`]). With `a`, `b` equal to the block's own and `offset` 0
+/// the plant is the plain one. Entries beyond the block's `na` and `nb` are ignored, as in `ArxParams`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct DirectionDependent {
     pub a: [f64; MAX_ORDER],
     pub b: [f64; MAX_ORDER + 1],
+    /// A constant added to `x_fall(k)`: where the falling set comes to rest against the rising one. With
+    /// static gains that differ, the two sets' steady states cross at the input 0 unless it is free, so a
+    /// fit about an arbitrary input zero needs it (the plant FMU's block keeps 0: its zero is the physical
+    /// one).
+    #[serde(default)]
+    pub offset: f64,
 }
 
 impl DirectionDependent {
@@ -242,6 +248,7 @@ impl Effects {
             for (j, v) in d.b.iter().enumerate() {
                 check_finite(&format!("b{j}_fall"), *v)?;
             }
+            check_finite("offset_fall", d.offset)?;
         }
         if let Some(g) = &self.gap_drift {
             check_finite("c1_rate", g.c1_rate)?;

@@ -398,7 +398,7 @@ impl Plant {
                 )),
             ) => {
                 let p = &arx.params;
-                let fall = arx.peek_with(&d.a[..p.na], &d.b[..=p.nb]);
+                let fall = arx.peek_with(&d.a[..p.na], &d.b[..=p.nb]) + d.offset;
                 effects::DirectionDependent::choose(arx.last_output(), arx.peek(), fall)
             }
             _ => self.linear.peek(),
@@ -622,13 +622,15 @@ mod tests {
             a: [-0.5, 0.0, 0.0, 0.0],
             b: [1.0, 0.0, 0.0, 0.0, 0.0],
         };
-        let with = |a: [f64; MAX_ORDER], b: [f64; MAX_ORDER + 1]| PlantExtensions {
-            effects: Effects {
-                direction_dependent: Some(DirectionDependent { a, b }),
-                ..Effects::default()
-            },
-            ..PlantExtensions::default()
-        };
+        let with_offset =
+            |a: [f64; MAX_ORDER], b: [f64; MAX_ORDER + 1], offset: f64| PlantExtensions {
+                effects: Effects {
+                    direction_dependent: Some(DirectionDependent { a, b, offset }),
+                    ..Effects::default()
+                },
+                ..PlantExtensions::default()
+            };
+        let with = |a, b| with_offset(a, b, 0.0);
         let u = [1.0, 1.0, 0.0, 0.0, 0.0];
         let run = |ext: &PlantExtensions| {
             let mut plant = Plant::with_extensions(p, ext).unwrap();
@@ -654,6 +656,16 @@ mod tests {
             .map(|o| o.x)
             .collect();
         assert_eq!(run(&with(p.arx.a, p.arx.b)), plain);
+        // The falling set's offset moves only the falling samples: x3 = 1.35 + 0.25, x4 = 0.9 x3 + 0.25.
+        let xs = run(&with_offset(
+            [-0.9, 0.0, 0.0, 0.0],
+            [0.1, 0.0, 0.0, 0.0, 0.0],
+            0.25,
+        ));
+        let want = [0.0, 1.0, 1.5, 1.6, 0.9 * 1.6 + 0.25];
+        for (x, w) in xs.iter().zip(want) {
+            assert!((x - w).abs() < 1e-12, "{xs:?}");
+        }
         // An unstable falling set, and the effect on a continuous block, are refused by name.
         let err = Plant::with_extensions(p, &with([-1.5, 0.0, 0.0, 0.0], p.arx.b)).unwrap_err();
         assert_eq!(err.name, "a1_fall");

@@ -5,7 +5,7 @@ use super::structure::StructureArgs;
 use anyhow::{Context, Result};
 use backlash::api::{
     Rate, Record, RecordOptions, choose_rate, diagnose_with_progress, diagnosis_json, time_budget,
-    with_rate,
+    with_linear_baseline, with_rate,
 };
 use backlash::diagnose::engine::{DiagnoseConfig, Diagnosis};
 use backlash::diagnose::report::{ReportInput, Validation, write_report};
@@ -81,10 +81,13 @@ pub fn run(args: &DiagnoseArgs, argv: &[String]) -> Result<()> {
     let cfg = args.config()?;
     let rate = choose_rate(&rec.u, &rec.y, args.record.decimate, cfg.fit_fraction)
         .with_context(|| format!("{}", args.file.display()))?;
-    let rec = match rate.chosen_by {
-        "data" => rec.decimated(rate.decimate),
-        _ => rec,
+    // The record as the rate stage saw it stays for the linear baseline at its own rate.
+    let given = rec;
+    let (worked, factor) = match rate.chosen_by {
+        "data" => (Some(given.clone().decimated(rate.decimate)), rate.decimate),
+        _ => (None, 1),
     };
+    let rec = worked.as_ref().unwrap_or(&given);
     // The stage on standard error (drawn only on a terminal; not with --json).
     let progress = spinner(args.json, "reading");
     let d = diagnose_with_progress(&rec.u, &rec.y, &cfg, &|stage| {
@@ -96,6 +99,7 @@ pub fn run(args: &DiagnoseArgs, argv: &[String]) -> Result<()> {
     let validations = validate(args, &d, rate.decimate)?;
     let mut out = diagnosis_json(&d, &rec.u, rec.sample_period(), rec.decimate);
     with_rate(&mut out, &rate);
+    with_linear_baseline(&mut out, (&given.u, &given.y), cfg.fit_fraction, &d, factor);
     let warnings: Vec<String> = out["warnings"]
         .as_array()
         .into_iter()
@@ -107,7 +111,7 @@ pub fn run(args: &DiagnoseArgs, argv: &[String]) -> Result<()> {
             args,
             argv,
             dir,
-            &rec,
+            rec,
             &d,
             (&validations, &rate),
             &warnings,

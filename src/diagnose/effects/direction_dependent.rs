@@ -1,6 +1,8 @@
-//! `direction-dependent`: the linear block has a second set of coefficients (same orders) for while its
-//! output falls: x(k) = x_rise(k) unless that falls below x(k-1), then x_fall(k), as a motor driven up and
-//! coasting down.
+//! `direction-dependent`: the linear block has a second set of coefficients (same orders) and a constant for
+//! while its output falls: x(k) = x_rise(k) unless that falls below x(k-1), then x_fall(k), as a motor driven
+//! up and coasting down. The constant places where the falling set rests against the rising one: without it
+//! the two sets' steady states would cross at the input's zero, which about an operating point (or in a
+//! sensor's units) is arbitrary.
 
 use crate::diagnose::effects::figure::{Figure, over_time};
 use crate::diagnose::effects::rig::{Draw, Rig};
@@ -17,18 +19,44 @@ pub const ID: EffectId = EffectId::declare("direction-dependent");
 /// The catalogue entry.
 pub struct DirectionDependent;
 
-/// The falling set `a`, `b` (the base model's `na` and `nb + 1` entries).
+/// The falling set `a`, `b` (the base model's `na` and `nb + 1` entries) with no constant.
 pub fn extension(a: &[f64], b: &[f64]) -> Extension {
+    with_offset(a, b, 0.0)
+}
+
+/// The falling set `a`, `b` and its constant `offset` (added to x_fall).
+pub fn with_offset(a: &[f64], b: &[f64], offset: f64) -> Extension {
     Extension::new(
         &DirectionDependent,
         vec![a.len() as f64],
-        a.iter().chain(b).copied().collect(),
+        a.iter().chain(b).chain([&offset]).copied().collect(),
     )
 }
 
-/// The falling set's `a` and `b` in `ext`.
-pub fn falling_set(ext: &Extension) -> (&[f64], &[f64]) {
-    ext.theta.split_at(ext.fixed[0] as usize)
+/// The falling set's `a`, `b` and constant in `ext`.
+pub fn falling_set(ext: &Extension) -> (&[f64], &[f64], f64) {
+    let (a, rest) = ext.theta.split_at(ext.fixed[0] as usize);
+    let (b, offset) = rest.split_at(rest.len().saturating_sub(1));
+    (a, b, offset.first().copied().unwrap_or(0.0))
+}
+
+/// The falling set's extra starts scale the block's poles by these factors (faster, then slower).
+const FALL_POLE_SCALES: [f64; 2] = [0.55, 1.0 / 0.55];
+
+/// The block `a`, `b` with every pole scaled by `s` (a_i s^i) and b rescaled to keep the static gain;
+/// `None` when the block has no pole or the scaled one is unstable or has no static gain.
+fn scaled_poles(a: &[f64], b: &[f64], s: f64) -> Option<(Vec<f64>, Vec<f64>)> {
+    let mut scale = 1.0;
+    let fall: Vec<f64> = a
+        .iter()
+        .map(|v| {
+            scale *= s;
+            v * scale
+        })
+        .collect();
+    let (den, den_fall) = (1.0 + a.iter().sum::<f64>(), 1.0 + fall.iter().sum::<f64>());
+    let usable = !a.is_empty() && is_stable(&fall) && den != 0.0 && den_fall != 0.0;
+    usable.then(|| (fall, b.iter().map(|v| v * den_fall / den).collect()))
 }
 
 /// Coefficients `a`, `b` (at most the plant's orders) padded with zeros to the plant's arrays.
@@ -46,33 +74,37 @@ impl Element for DirectionDependent {
     }
 
     fn switch_on(&self, ext: &Extension, on: &mut Elements) {
-        let (a, b) = falling_set(ext);
+        let (a, b, offset) = falling_set(ext);
         let (a, b) = padded(a, b);
-        on.effects.direction_dependent = Some(crate::plant::effects::DirectionDependent { a, b });
+        on.effects.direction_dependent =
+            Some(crate::plant::effects::DirectionDependent { a, b, offset });
     }
 
     /// A stable, finite falling set.
     fn valid(&self, ext: &Extension, _base: &BaseModel) -> bool {
-        let (a, _) = falling_set(ext);
+        let (a, _, _) = falling_set(ext);
         is_stable(a) && ext.theta.iter().all(|v| v.is_finite())
     }
 
-    /// The base model's magnitudes for its coefficients ([`BaseModel::typical`]).
-    fn typical(&self, ext: &Extension, _s: &Scales) -> Vec<f64> {
-        let (a, b) = falling_set(ext);
-        coefficient_scales(a.len(), b, 0.0)
+    /// The base model's magnitudes for its coefficients ([`BaseModel::typical`]); the linear block's output
+    /// scale for the constant.
+    fn typical(&self, ext: &Extension, s: &Scales) -> Vec<f64> {
+        let (a, b, _) = falling_set(ext);
+        let mut t = coefficient_scales(a.len(), b, 0.0);
+        t.push(s.x);
+        t
     }
 
     /// The falling set takes the base's orders, a new coefficient starting at the base's own (no direction
-    /// dependence in it).
+    /// dependence in it); the constant stays.
     fn rebased(&self, ext: &Extension, base: &BaseModel) -> Extension {
-        let (a, b) = falling_set(ext);
+        let (a, b, offset) = falling_set(ext);
         let resize = |fall: &[f64], own: &[f64]| -> Vec<f64> {
             (0..own.len())
                 .map(|i| fall.get(i).copied().unwrap_or(own[i]))
                 .collect()
         };
-        extension(&resize(a, &base.a), &resize(b, &base.b))
+        with_offset(&resize(a, &base.a), &resize(b, &base.b), offset)
     }
 }
 
@@ -94,24 +126,34 @@ impl Effect for DirectionDependent {
         &[BY_MODE, SINCE_REVERSAL, BILLINGS, LJUNG_BOX]
     }
 
-    /// The falling set starts as the block's own coefficients: the current model.
+    /// The falling set starts as the block's own coefficients and no constant (the current model), and with
+    /// its poles faster and slower ([`FALL_POLE_SCALES`], same static gain): from the current model alone a
+    /// fit can stay where both sets are one.
     fn plan(&self, cx: &StartContext) -> Option<Plan> {
         let b = &cx.current.base;
-        Some(Plan::at(cx.current.with(extension(&b.a, &b.b))))
+        let mut starts = vec![cx.current.with(extension(&b.a, &b.b))];
+        starts.extend(
+            FALL_POLE_SCALES
+                .iter()
+                .filter_map(|&s| scaled_poles(&b.a, &b.b, s))
+                .map(|(a, bb)| cx.current.with(extension(&a, &bb))),
+        );
+        Plan::from_starts(starts)
     }
 
     fn parameters(&self, f: &Fitted) -> Parameters {
         f.own(ID, |ext| {
-            let (a, b) = falling_set(ext);
+            let (a, b, offset) = falling_set(ext);
             let base = &f.model.base;
             Parameters::new()
                 .with("a_rise", &base.a)
                 .with("b_rise", &base.b)
                 .with("a_fall", a)
                 .with("b_fall", b)
+                .with("offset_fall", offset)
                 .with(
                     "note",
-                    "x(k) = -sum a_rise_i x(k-i) + sum b_rise_j u(k-delay-j) unless that is below x(k-1); then the same with a_fall, b_fall",
+                    "x(k) = -sum a_rise_i x(k-i) + sum b_rise_j u(k-delay-j) unless that is below x(k-1); then the same with a_fall, b_fall, plus offset_fall (u about the operating point)",
                 )
         })
     }
@@ -138,7 +180,11 @@ impl Effect for DirectionDependent {
     fn draw(&self, rig: &mut Rig, d: &mut Draw) -> String {
         let s = d.uniform(0.4, 0.7);
         let arx = &rig.params.arx;
-        let mut fall = crate::plant::effects::DirectionDependent { a: arx.a, b: arx.b };
+        let mut fall = crate::plant::effects::DirectionDependent {
+            a: arx.a,
+            b: arx.b,
+            offset: 0.0,
+        };
         let mut scale = 1.0;
         for a in fall.a.iter_mut().take(arx.na) {
             scale *= s;

@@ -68,7 +68,7 @@ fn falling_set_packs_rebases_and_must_be_stable() {
     let fall = direction_dependent::extension(&[0.2, 0.15], &[0.5]);
     let m = EffectModel::plain(paper_base()).with(fall);
     let th = m.pack(1.0);
-    assert_eq!(th[6..], [0.2, 0.15, 0.5]);
+    assert_eq!(th[6..], [0.2, 0.15, 0.5, 0.0]);
     assert_eq!(m.unpack(&th, 1.0), m);
     let wider = m.rebased(paper_base().with_orders(3, 1, 1));
     assert_eq!(

@@ -8,9 +8,12 @@
 //!   when they are not declared.
 //! - [`lm`]: the bounded Levenberg-Marquardt fitter, costs, BIC and covariances.
 //! - [`pins`]: which parameters a fit holds (the play pinned at a width, the zero-gap model's ties).
+//! - [`baseline`]: the best ARX model with an intercept at the record's own rate, the linear baseline the
+//!   final model is held against.
 //!
 //! Nothing here names an effect: an extension's behaviour comes from its effect (`crate::diagnose::effects`).
 
+pub mod baseline;
 pub(crate) mod linear_oe;
 pub mod lm;
 pub mod model;

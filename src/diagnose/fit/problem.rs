@@ -374,12 +374,30 @@ impl<'a> Problem<'a> {
         })
     }
 
+    /// The first sample at which every regressor of `s` is measured.
+    pub fn arx_start(s: Structure) -> usize {
+        s.na.max(s.delay + s.nb)
+    }
+
+    /// The regressors of y(k) for the structure `s` into `row` (na + nb + 2 entries): -y(k-1..k-na),
+    /// u(k-delay..k-delay-nb), 1. `k` is at least [`Problem::arx_start`].
+    pub fn arx_row(&self, s: Structure, k: usize, row: &mut [f64]) {
+        let (na, nb, delay) = (s.na, s.nb, s.delay);
+        for (i, r) in row.iter_mut().take(na).enumerate() {
+            *r = -self.y[k - 1 - i];
+        }
+        for j in 0..=nb {
+            row[na + j] = self.u[k - delay - j];
+        }
+        row[na + nb + 1] = 1.0;
+    }
+
     /// Equation-error least squares of y on its past, the delayed inputs and a constant, on the fit part:
     /// (a, b, the constant as an output offset: `y = x + offset` with x the linear block's output). `None` when the record is too short for the structure or the equations are singular.
     pub fn arx(&self, s: Structure) -> Option<(Vec<f64>, Vec<f64>, f64)> {
         use nalgebra::{DMatrix, DVector};
-        let (na, nb, delay) = (s.na, s.nb, s.delay);
-        let k0 = na.max(delay + nb);
+        let (na, nb) = (s.na, s.nb);
+        let k0 = Self::arx_start(s);
         if self.n_fit <= k0 + na + nb + 3 {
             return None;
         }
@@ -388,13 +406,7 @@ impl<'a> Problem<'a> {
         let mut g = DVector::<f64>::zeros(cols);
         let mut row = vec![0.0; cols];
         for k in k0..self.n_fit {
-            for (i, r) in row.iter_mut().take(na).enumerate() {
-                *r = -self.y[k - 1 - i];
-            }
-            for j in 0..=nb {
-                row[na + j] = self.u[k - delay - j];
-            }
-            row[cols - 1] = 1.0;
+            self.arx_row(s, k, &mut row);
             for a in 0..cols {
                 g[a] += row[a] * self.y[k];
                 for b in 0..=a {
