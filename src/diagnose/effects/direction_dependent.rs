@@ -127,7 +127,7 @@ impl Effect for DirectionDependent {
     }
 
     /// The falling set starts as the block's own coefficients and no constant (the current model), and with
-    /// its poles faster and slower ([`FALL_POLE_SCALES`], same static gain): from the current model alone a
+    /// its poles faster and slower (`FALL_POLE_SCALES`, same static gain): from the current model alone a
     /// fit can stay where both sets are one.
     fn plan(&self, cx: &StartContext) -> Option<Plan> {
         let b = &cx.current.base;

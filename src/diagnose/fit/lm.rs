@@ -417,7 +417,7 @@ const MAX_HAC_LAGS: usize = 2000;
 const MAX_HAC_SHARE: f64 = 0.1;
 
 /// [`CombinationVariance`] of `w . theta` at `theta`; `None` when the data do not determine `w . theta` (see
-/// [`solve_determined`]) or the point is not valid. Parameters the data do not determine are allowed when the
+/// `solve_determined`) or the point is not valid. Parameters the data do not determine are allowed when the
 /// combination does not involve them (a gap's centre that a following friction element absorbs, with its
 /// width `c1 + c2` determined).
 pub fn combination_variance<R: Residuals + ?Sized>(

@@ -2,7 +2,7 @@
 //! experiment that would decide), judged on the final model with the evidence for and against in words.
 //!
 //! - **The model it stands on.** The final model, unless one of the play-free effects that imitate play,
-//!   added to it with its gap kept (a rival with play, see [`super::alternatives`]), predicts the held-out
+//!   added to it with its gap kept (a rival with play, see `alternatives`), predicts the held-out
 //!   part clearly better: then that rival, named in `model`, and its gap is judged against the same effects
 //!   without a gap (like with like). Choosing it on the held-out part spends some of that part's evidence,
 //!   so its gain must then reach [`FEW_REVERSALS_Z`].
@@ -16,8 +16,8 @@
 //!   [`MIN_HELDOUT_REVERSALS`] on the held-out part (or [`FEW_REVERSALS`] and [`FEW_HELDOUT_REVERSALS`], a
 //!   periodic test of a few periods, with every gain at [`FEW_REVERSALS_Z`]); the record determines every
 //!   parameter of the model; the two halves of the fit part give plays that agree.
-//! - **Absent** needs: no gain from the gap, the play not significantly above zero, a model the record
-//!   determines, no friction element (itself a play), a bound (the largest
+//! - **Absent** needs: no gain from the gap, the play not significantly above zero, a model with the gap
+//!   no worse than its zero-gap twin on the held-out part, no friction element (itself a play), a bound (the largest
 //!   play the record does not rule out at 95%, checked on the play's profile) narrower than
 //!   [`MAX_BOUND_SHARE`] of the travel, and at least [`MIN_ABSENT_REVERSALS`] reversals crossing it.
 //! - Anything else is **undetermined**, and so is every impossible estimate (a negative gap, a play wider
@@ -53,6 +53,8 @@ pub const FEW_HELDOUT_REVERSALS: usize = 2;
 pub const FEW_REVERSALS_Z: f64 = 3.09;
 /// What the verdict stands on unless a rival with play predicts better.
 const FINAL_MODEL: &str = "the final model";
+/// The name of its zero-gap twin among the play-free models.
+const TWIN: &str = "zero-gap";
 /// Reversals crossing the bound, on the fit part, for `absent`.
 pub const MIN_ABSENT_REVERSALS: usize = 20;
 /// The widest play, as a share of the travel (1st to 99th percentile of the linear block's output on the
@@ -180,7 +182,7 @@ pub(crate) fn assess(p: &Problem, last: &EffectModel) -> BacklashSupport {
 /// final model `first`, why. The play-free imitators are fitted only where the gap beats its zero-gap twin;
 /// a rival with play only for the imitators the final model does not beat.
 fn standing(p: &Problem, first: Reading) -> (Reading, Vec<PlayFree>, Option<String>) {
-    let twin = play_free(p, &first.heldout, &first.model, "zero-gap");
+    let twin = play_free(p, &first.heldout, &first.model, TWIN);
     let gains = twin.as_ref().is_some_and(|t| beats(&first, t, MIN_Z));
     let mut free: Vec<PlayFree> = twin.into_iter().collect();
     if !gains {
@@ -435,8 +437,8 @@ impl Context<'_, '_> {
             && self.play_free.iter().all(|t| beats(r, t, self.needed_z()));
         let significant = self.significant(reasons);
         let crossed = self.crossed(reasons);
-        let mut halves = None;
         let identified = self.identified(reasons);
+        let mut halves = None;
         let present = !impossible && significant && gains && crossed && identified && {
             halves = self.halves();
             self.halves_agree(halves, reasons)
@@ -445,7 +447,8 @@ impl Context<'_, '_> {
             return self.answer(Presence::Present, None, halves);
         }
         let friction = self.friction_reads_as_play(reasons);
-        let bound = (!impossible && !gains && !significant && !friction && identified)
+        let worse = self.worse_than_its_twin(reasons);
+        let bound = (!impossible && !gains && !significant && !friction && !worse)
             .then(|| self.bound(reasons))
             .flatten();
         if let Some(b) = bound {
@@ -453,6 +456,7 @@ impl Context<'_, '_> {
         }
         let mut out = self.answer(Presence::Undetermined, None, halves);
         let [fit, held] = self.reversals;
+        let claim = significant && gains && !impossible;
         out.undecided_by = [
             (impossible, "the estimate is impossible for a play (see the reasons)".to_string()),
             (
@@ -465,26 +469,31 @@ impl Context<'_, '_> {
                     .into(),
             ),
             (
-                !gains && !significant && !friction && identified,
+                !gains && !significant && !friction && !worse,
                 "no bound on the play could be established (see the reasons)".into(),
             ),
             (
-                !identified,
-                "the record does not determine every parameter of the model (see the reasons)".into(),
+                worse,
+                "the model with the gap predicts worse than without it: no bound is read from its fit".into(),
             ),
             (
                 friction,
                 "the friction element reads as a play: the record cannot tell them apart".into(),
             ),
             (
-                significant && gains && !crossed,
+                claim && !crossed,
                 format!(
                     "too few reversals cross the play ({fit} on the fit part, {held} held out; \
-                     {MIN_REVERSALS} and {MIN_HELDOUT_REVERSALS} needed)"
+                     {MIN_REVERSALS} and {MIN_HELDOUT_REVERSALS}, or {FEW_REVERSALS} and \
+                     {FEW_HELDOUT_REVERSALS} with a stronger gain, needed)"
                 ),
             ),
             (
-                significant && gains && crossed && !impossible && identified,
+                claim && crossed && !identified,
+                "the record does not determine every parameter of the model (see the reasons)".into(),
+            ),
+            (
+                claim && crossed && identified,
                 "the two halves of the fit part do not confirm the play (see the reasons)".into(),
             ),
         ]
@@ -492,6 +501,25 @@ impl Context<'_, '_> {
         .filter_map(|(on, why)| on.then_some(why))
         .collect();
         out
+    }
+
+    /// Whether the model with the gap predicts the held-out part significantly worse than its zero-gap twin
+    /// (a special case of it): its fit went wrong or spent the gap on the fit part's noise, and a bound read
+    /// from it would rule out a play the record does not rule out; in words.
+    fn worse_than_its_twin(&self, reasons: &mut Vec<String>) -> bool {
+        let Some(twin) = self.play_free.iter().find(|t| t.model == TWIN) else {
+            return false;
+        };
+        let worse = twin.z <= -MIN_Z;
+        if worse {
+            reasons.push(format!(
+                "the model with the gap predicts the held-out part significantly worse than the same model \
+                 without it (Diebold-Mariano z {:.2}), though the gap-free model is a special case of it: its \
+                 fit is no basis for a bound on the play",
+                twin.z
+            ));
+        }
+        worse
     }
 
     /// A friction element in the final model is itself a play acting on the force (an elasto-plastic
