@@ -14,8 +14,8 @@
 //!   Newey-West sandwich); it is narrower than [`MAX_PLAY_SHARE`] of the travel of the linear block's
 //!   output; at least [`MIN_REVERSALS`] reversals of that output cross it on the fit part and
 //!   [`MIN_HELDOUT_REVERSALS`] on the held-out part (or [`FEW_REVERSALS`] and [`FEW_HELDOUT_REVERSALS`], a
-//!   periodic test of a few periods, with every gain at [`FEW_REVERSALS_Z`]); the record determines every
-//!   parameter of the model; the two halves of the fit part give plays that agree.
+//!   periodic test of a few periods, with every gain at [`FEW_REVERSALS_Z`]); with a friction element, the
+//!   record determines every parameter (else friction and gap read alike); the fit part's halves agree.
 //! - **Absent** needs: no gain from the gap, the play not significantly above zero, a model with the gap
 //!   no worse than its zero-gap twin on the held-out part, no friction element (itself a play), a bound (the largest
 //!   play the record does not rule out at 95%, checked on the play's profile) narrower than
@@ -490,7 +490,7 @@ impl Context<'_, '_> {
             ),
             (
                 claim && crossed && !identified,
-                "the record does not determine every parameter of the model (see the reasons)".into(),
+                "the record does not tell the friction element from the gap (see the reasons)".into(),
             ),
             (
                 claim && crossed && identified,
@@ -540,20 +540,24 @@ impl Context<'_, '_> {
         true
     }
 
-    /// Whether the record determines every parameter of the model the verdict stands on, in words when it
-    /// does not: a model the record does not determine (a friction element absorbs the gap's centre, say)
-    /// is one of many that fit alike, and cannot carry a claim of play, though its play has a variance.
+    /// Whether the friction element and the gap are told apart: false where the model has a friction
+    /// element and the record does not determine every parameter (the friction absorbs where the gap sits,
+    /// so the play c1 + c2 has a variance, but the loop is read as friction and as play alike: a
+    /// Coulomb-viscous mass without play fits so), in words. Elsewhere an undetermined centre is a constant
+    /// traded against the gap (direction-dependent dynamics' falling constant) and the play stands.
     fn identified(&self, reasons: &mut Vec<String>) -> bool {
         let r = self.r;
-        if r.se.is_some() && !r.identified {
+        let told_apart = r.identified || r.model.effects().friction.is_none();
+        if r.se.is_some() && !told_apart {
             reasons.push(
-                "the record does not determine every parameter of the model (its information matrix is \
-                 singular: the play c1 + c2 is determined, but not where the gap sits, which the following \
-                 element absorbs): many models fit alike, so the play cannot be claimed from it"
+                "the record does not determine every parameter of the model with its friction element (the \
+                 information matrix is singular: the play c1 + c2 is determined, but not where the gap sits, \
+                 which the friction absorbs): the loop reads as friction and as play alike, so the play is \
+                 not claimed"
                     .into(),
             );
         }
-        r.identified
+        told_apart
     }
 
     /// The z the held-out gain needs against every play-free model: [`MIN_Z`], or [`FEW_REVERSALS_Z`] when
