@@ -19,9 +19,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::diagnose::fit::lm::LmOptions;
+use crate::diagnose::fit::operating_point::OperatingPoint;
 use crate::diagnose::fit::orders::Structure;
 use crate::diagnose::fit::problem::Problem;
-use crate::diagnose::search::diagnosis::OperatingPoint;
 use crate::stats::rms_diff;
 
 /// The highest na and nb of the baseline's grid.

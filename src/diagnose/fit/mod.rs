@@ -17,6 +17,7 @@ pub mod baseline;
 pub(crate) mod linear_oe;
 pub mod lm;
 pub mod model;
+pub mod operating_point;
 pub mod orders;
 pub mod pins;
 pub mod problem;

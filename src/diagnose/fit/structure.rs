@@ -530,7 +530,7 @@ pub fn select_for_record(
     }
     // About the operating point, as `diagnose` works, so that both choose from the same numbers.
     let n_fit = fit_len(n, fit_fraction);
-    let op = crate::diagnose::search::diagnosis::OperatingPoint::of(&u[..n], &y[..n], n_fit);
+    let op = crate::diagnose::fit::operating_point::OperatingPoint::of(&u[..n], &y[..n], n_fit);
     let (u, y) = (op.deviations(&u[..n], op.u), op.deviations(&y[..n], op.y));
     let mut p = Problem::new(&u, &y, n_fit, LmOptions::default());
     choose(&mut p, None, max_delay.clamp(1, MAX_DELAY)).1

@@ -25,6 +25,7 @@
 
 use serde::Serialize;
 
+pub use super::alternatives::PlayFree;
 use super::alternatives::{Fitted, best_rival, heldout_errors, imitators, play_free};
 use crate::diagnose::fit::model::{EffectModel, Objective, Rest, Simulation};
 use crate::diagnose::fit::problem::Problem;
@@ -84,19 +85,6 @@ pub enum Presence {
     Present,
     Absent,
     Undetermined,
-}
-
-/// A play-free model the gap was compared with.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct PlayFree {
-    /// `zero-gap` (the same borders without a gap) or `zero-gap + <effect>`.
-    pub model: String,
-    pub heldout_rmse: f64,
-    /// Diebold-Mariano z of the model with the gap against it (positive: the gap predicts better).
-    pub z: f64,
-    /// Its held-out errors `y - y_model` (to judge it against another model with the gap).
-    #[serde(skip)]
-    pub errors: Vec<f64>,
 }
 
 /// The verdict on play with its evidence (the JSON's `backlash`).
