@@ -44,7 +44,7 @@ use backlash::plant::effects::{ColouredNoise, Effects, simulate_with_effects, zo
 use backlash::stats::std_dev;
 
 mod sim;
-use sim::{FIT, backlash_of, linear_block, reversals, run, travel};
+use sim::{FIT, backlash_of, effect_names, linear_block, reversals, run, travel};
 
 #[derive(Parser)]
 struct Cli {
@@ -225,12 +225,7 @@ fn record(
         se: b.play_se,
         se_white: b.play_se_white,
         presence: b.presence,
-        effects: diag
-            .steps()
-            .iter()
-            .map(|c| c.id.to_string())
-            .collect::<Vec<_>>()
-            .join(" + "),
+        effects: effect_names(&diag),
         structure: (
             diag.structure.chosen.na,
             diag.structure.chosen.nb,

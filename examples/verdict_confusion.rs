@@ -40,7 +40,7 @@ use backlash::plant::{Plant, PlantParams};
 use backlash::stats::std_dev;
 
 mod sim;
-use sim::{backlash_of, linear_block, reversals, run, travel};
+use sim::{backlash_of, effect_names, linear_block, reversals, run, travel};
 
 #[derive(Parser)]
 struct Cli {
@@ -243,12 +243,7 @@ fn row(
         seed,
         presence: diag.backlash.presence,
         truth: sim.truth,
-        effects: diag
-            .steps()
-            .iter()
-            .map(|c| c.id.to_string())
-            .collect::<Vec<_>>()
-            .join(" + "),
+        effects: effect_names(&diag),
         b: diag.backlash,
         what: sim.what.clone(),
     }

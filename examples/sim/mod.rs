@@ -82,3 +82,12 @@ pub fn reversals(w: &[f64]) -> usize {
     }
     count
 }
+
+/// The effects a diagnosis kept, in order, joined by " + " (empty when none).
+pub fn effect_names(d: &backlash::diagnose::engine::Diagnosis) -> String {
+    d.steps()
+        .iter()
+        .map(|c| c.id.to_string())
+        .collect::<Vec<_>>()
+        .join(" + ")
+}

@@ -104,17 +104,23 @@ def test_the_compensator_fmus_validate():
         assert validate_fmu(_need(folder / "BacklashCompensator.fmu")) == []
 
 
-def test_the_fmu_loop_gives_the_library_loops_numbers(plant_fmu, estimator_fmu, compensator_fmu, cli, tmp_path):
-    n, noise, memory = 3000, 0.02, 500
-    rng = np.random.default_rng(5)
-    e = rng.standard_normal(n)
+def write_reference(path, n):
+    """The loops' reference: low-pass noise of std 1.5 (AR(1), pole 0.9, seed 5), written as `time,r` to
+    `path`; returns it."""
+    e = np.random.default_rng(5).standard_normal(n)
     r = np.empty(n)
     r[0] = 1.5 * e[0]
     for k in range(1, n):
         r[k] = 0.9 * r[k - 1] + 1.5 * np.sqrt(1 - 0.81) * e[k]
-    path = tmp_path / "reference.csv"
     np.savetxt(path, np.column_stack([np.arange(n, dtype=float), r]), delimiter=",", header="time,r",
                comments="", fmt="%.17g")
+    return r
+
+
+def test_the_fmu_loop_gives_the_library_loops_numbers(plant_fmu, estimator_fmu, compensator_fmu, cli, tmp_path):
+    n, noise, memory = 3000, 0.02, 500
+    path = tmp_path / "reference.csv"
+    r = write_reference(path, n)
     out = subprocess.run([cli, "compensate", str(path), "--noise-std", str(noise), "--wear", "ramp",
                           "--wear-ratio", "0.5", "--memory", str(memory), "--modes", "adaptive", "--json"],
                          capture_output=True, text=True, check=True)

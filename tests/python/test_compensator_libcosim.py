@@ -27,7 +27,13 @@ import subprocess
 
 import numpy as np
 
-from test_compensator_fmpy import PAPER, WARMUP, _invertible, compensator_fmu  # noqa: F401 (a fixture)
+from test_compensator_fmpy import (  # noqa: F401 (compensator_fmu: a fixture)
+    PAPER,
+    WARMUP,
+    _invertible,
+    compensator_fmu,
+    write_reference,
+)
 
 NS = 1_000_000_000  # libcosim time is integer nanoseconds; Ts = 1 s
 LINEAR = ["a1", "a2", "b0"]
@@ -124,15 +130,8 @@ def run_loop(plant_fmu, estimator_fmu, compensator_fmu, r, noise_std, ramp, memo
 def test_the_libcosim_loop_gives_the_library_loops_numbers(plant_fmu, estimator_fmu, compensator_fmu, cli,
                                                            tmp_path):
     n, noise, memory = 3000, 0.02, 500
-    rng = np.random.default_rng(5)
-    e = rng.standard_normal(n)
-    r = np.empty(n)
-    r[0] = 1.5 * e[0]
-    for k in range(1, n):
-        r[k] = 0.9 * r[k - 1] + 1.5 * np.sqrt(1 - 0.81) * e[k]
     path, out = tmp_path / "reference.csv", tmp_path / "loop.csv"
-    np.savetxt(path, np.column_stack([np.arange(n, dtype=float), r]), delimiter=",", header="time,r",
-               comments="", fmt="%.17g")
+    r = write_reference(path, n)
     args = [cli, "compensate", str(path), "--noise-std", str(noise), "--wear", "ramp", "--wear-ratio", "0.5",
             "--memory", str(memory), "--modes", "adaptive", "--out", str(out), "--json"]
     lib = {lag: json.loads(subprocess.run(args + ["--estimate-lag", str(lag)], capture_output=True, text=True,

@@ -435,8 +435,7 @@ pub fn combination_variance<R: Residuals + ?Sized>(
     let s2 = info.s2();
     let Information { r, jac, h, .. } = info;
     let n = r.len();
-    let all_determined = h.clone().cholesky().is_some();
-    let v = solve_determined(&h, &DVector::from_column_slice(w))?;
+    let (v, all_determined) = solve_determined(&h, &DVector::from_column_slice(w))?;
     let classical = s2 * v.dot(&DVector::from_column_slice(w));
     // The influence of each sample on w . theta: (v . J_t) r_t.
     let score: Vec<f64> = (0..n)
@@ -464,13 +463,13 @@ const NULL_EIGEN: f64 = 1e-9;
 /// count as determined.
 const NULL_SHARE: f64 = 1e-6;
 
-/// `v` with `H v = w` for the information matrix `H`: by Cholesky where `H` is positive definite; where it is
-/// singular (directions the data do not determine), by the pseudo-inverse, provided `w` has no part in those
-/// directions (then `w . theta` is determined even though `theta` is not, and `v` gives its variance);
-/// `None` otherwise.
-fn solve_determined(h: &DMatrix<f64>, w: &DVector<f64>) -> Option<DVector<f64>> {
+/// `v` with `H v = w` for the information matrix `H`, and whether `H` is positive definite (every parameter
+/// determined): by Cholesky where it is; where it is singular (directions the data do not determine), by the
+/// pseudo-inverse, provided `w` has no part in those directions (then `w . theta` is determined even though
+/// `theta` is not, and `v` gives its variance); `None` otherwise.
+fn solve_determined(h: &DMatrix<f64>, w: &DVector<f64>) -> Option<(DVector<f64>, bool)> {
     if let Some(c) = h.clone().cholesky() {
-        return Some(c.solve(w));
+        return Some((c.solve(w), true));
     }
     let eig = h.clone().symmetric_eigen();
     let top = eig.eigenvalues.iter().fold(0.0f64, |a, v| a.max(*v));
@@ -488,7 +487,7 @@ fn solve_determined(h: &DMatrix<f64>, w: &DVector<f64>) -> Option<DVector<f64>> 
             null += along * along;
         }
     }
-    (null <= (NULL_SHARE * w.norm()).powi(2)).then_some(v)
+    (null <= (NULL_SHARE * w.norm()).powi(2)).then_some((v, false))
 }
 
 /// The Bartlett window for residuals `r`: out to the first lag where their autocorrelation falls below

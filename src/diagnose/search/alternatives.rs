@@ -151,8 +151,19 @@ pub(super) fn imitators(
 /// Whether errors `e` predict the held-out part better than `last`'s by at least `min_gain` (relative fall
 /// of the RMSE) with a Diebold-Mariano z of at least `min_z`.
 pub(super) fn clearly_better(e: &[f64], last: &[f64], min_gain: f64, min_z: f64) -> bool {
-    rms(e.iter().copied()) < (1.0 - min_gain) * rms(last.iter().copied())
-        && diebold_mariano(last, e) >= min_z
+    better_by(
+        rms(e.iter().copied()),
+        rms(last.iter().copied()),
+        diebold_mariano(last, e),
+        min_gain,
+        min_z,
+    )
+}
+
+/// The one rule of every held-out comparison: an RMSE `rmse` below `(1 - min_gain)` times `than`, with a
+/// Diebold-Mariano z (of the other model against this one) of at least `min_z`.
+pub(super) fn better_by(rmse: f64, than: f64, z: f64, min_gain: f64, min_z: f64) -> bool {
+    rmse < (1.0 - min_gain) * than && z >= min_z
 }
 
 /// For each imitator that the final model `last` does not clearly beat, the same structure with its gap

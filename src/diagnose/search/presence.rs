@@ -26,7 +26,7 @@
 use serde::Serialize;
 
 pub use super::alternatives::PlayFree;
-use super::alternatives::{Fitted, best_rival, heldout_errors, imitators, play_free};
+use super::alternatives::{Fitted, best_rival, better_by, heldout_errors, imitators, play_free};
 use crate::diagnose::fit::model::{EffectModel, Objective, Rest, Simulation};
 use crate::diagnose::fit::problem::Problem;
 use crate::diagnose::residual::{self, statistics::diebold_mariano};
@@ -137,7 +137,7 @@ struct Reading {
     play: f64,
     se: Option<f64>,
     se_white: Option<f64>,
-    /// Whether the record determines every parameter of the model (else the model cannot carry a claim).
+    /// Whether the record determines every parameter of the model (beside a friction element, a claim needs it).
     identified: bool,
     travel: f64,
 }
@@ -177,7 +177,7 @@ fn standing(p: &Problem, first: Reading) -> (Reading, Vec<PlayFree>, Option<Stri
         return (first, free, None);
     }
     let last = first.fitted();
-    let mut found: Vec<_> = imitators(p, &last, &first.sim, &first.model, "zero-gap")
+    let mut found: Vec<_> = imitators(p, &last, &first.sim, &first.model, TWIN)
         .into_iter()
         .map(|im| (im, "the final model"))
         .collect();
@@ -357,8 +357,13 @@ fn impossible(r: &Reading, reasons: &mut Vec<String>) -> bool {
 /// Whether the model with the gap beats the play-free model `t` on the held-out part, by [`MIN_GAIN`] with
 /// a Diebold-Mariano z of at least `z`.
 fn beats(r: &Reading, t: &PlayFree, z: f64) -> bool {
-    let rmse = rms(r.heldout.iter().copied());
-    rmse < (1.0 - MIN_GAIN) * t.heldout_rmse && t.z >= z
+    better_by(
+        rms(r.heldout.iter().copied()),
+        t.heldout_rmse,
+        t.z,
+        MIN_GAIN,
+        z,
+    )
 }
 
 /// Reversals of `x` whose excursion afterwards exceeds `h` (see [`reversal_turns`]).
