@@ -9,6 +9,9 @@ set, names another folder with the same layout to read them from.
     python3 scripts/data_records.py brfd/KocaeliDBE_36lb.csv   # prints its path (relative to the repository
                                                                # root when inside it), or fails naming the
                                                                # fetch step
+
+A README's hash table may mark a row `extra` in a third column: that record belongs to the optional set, which
+neither the default fetch nor CI needs (`python3 scripts/fetch_data.py --extra` adds it).
 """
 
 from __future__ import annotations
@@ -21,9 +24,11 @@ import sys
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DATA_ENV = "BACKLASH_DATA"
 FETCH_COMMAND = "python3 scripts/fetch_data.py"
-# A row of a README's hash table: `| file.csv | <64 hex digits> |` (rows naming a source file have words
-# before the file name and are not records).
-HASH_ROW = re.compile(r"^\|\s*([\w.\-]+\.csv)\s*\|\s*([0-9a-f]{64})\s*\|")
+# A row of a README's hash table: `| file.csv | <64 hex digits> |`, or `| file.csv | <64 hex digits> | extra |`
+# for a record of the optional set (rows naming a source file have words before the file name and are not
+# records).
+HASH_ROW = re.compile(r"^\|\s*([\w.\-]+\.csv)\s*\|\s*([0-9a-f]{64})\s*\|(?:([^|]*)\|)?")
+EXTRA = "extra"  # the third cell that puts a record into the optional set
 
 
 class MissingRecord(FileNotFoundError):
@@ -50,14 +55,21 @@ def record_path(name: str) -> pathlib.Path:
     return path
 
 
-def manifest(readmes: pathlib.Path = ROOT / "data") -> dict[str, str]:
-    """Every record the project uses, as {"folder/file.csv": sha256}, read from the hash tables of
-    data/*/README.md (the one place the hashes are written)."""
+def manifest(readmes: pathlib.Path = ROOT / "data", extra: bool = False) -> dict[str, str]:
+    """The records of the default set (or, with extra, of the optional set), as {"folder/file.csv": sha256},
+    read from the hash tables of data/*/README.md (the one place the hashes are written). ValueError, naming
+    the README and the row, for a third cell other than empty or `extra`."""
     records = {}
     for readme in sorted(readmes.glob("*/README.md")):
         for line in readme.read_text(encoding="utf-8").splitlines():
             m = HASH_ROW.match(line.strip())
-            if m:
+            if not m:
+                continue
+            mark = (m.group(3) or "").strip()
+            if mark not in ("", EXTRA):
+                raise ValueError(f"{readme}: the row of {m.group(1)} is marked {mark!r}; only `{EXTRA}` (the "
+                                 "optional set) or nothing (the default set) is known")
+            if (mark == EXTRA) == extra:
                 records[f"{readme.parent.name}/{m.group(1)}"] = m.group(2)
     return records
 

@@ -7,6 +7,8 @@ conversion and sha256 of its files; this script reads the hashes there (scripts/
     python3 scripts/fetch_data.py --from DIR   # copy from a folder with the same layout (folder/file.csv)
     python3 scripts/fetch_data.py              # download each source at its pinned commit and convert it
                                                # (scripts/convert_records.py); needs internet access
+    python3 scripts/fetch_data.py --extra      # the same, and the optional set too (the rows marked `extra`
+                                               # in data/*/README.md; neither the tests nor CI need them)
 
 A record already in place with the right sha256 is kept (a second run only reads and checks every file). A
 file is written under a temporary name beside its destination and renamed once its sha256 is right: a wrong
@@ -70,8 +72,9 @@ TANKS_SOURCE = Source(
 )
 
 
-def brfd(path: str) -> Recipe:
-    return Recipe((Source(*BRFD, f"data/dataset-2/{path}"),), lambda s, out: convert_records.convert_brfd(s[0], out))
+def brfd(path: str, dataset: str = "dataset-2", sha256: str = "") -> Recipe:
+    return Recipe((Source(*BRFD, f"data/{dataset}/{path}", sha256),),
+                  lambda s, out: convert_records.convert_brfd(s[0], out))
 
 
 def servo(log: str, motor: int) -> Recipe:
@@ -82,7 +85,8 @@ def tanks(part: str) -> Recipe:
     return Recipe((TANKS_SOURCE,), lambda s, out: convert_records.convert_tanks(s[0], part, out))
 
 
-# Every record of data/*/README.md, with its recipe (the READMEs say the same in words).
+# Every record of data/*/README.md, of the default and the optional set, with its recipe (the READMEs say
+# the same in words).
 RECIPES = {
     "brfd/char_0.5Hz_36lb_1in.csv": brfd("characterization datasets/0.5Hz36lbtension1amplitude.json"),
     "brfd/KocaeliDBE_36lb.csv": brfd("earthquake profiles/KocaeliDBE.json"),
@@ -105,6 +109,25 @@ RECIPES = {
                 "6cf6814ae14618795da0101aae2bb97ff0c6351b0501b5492751b02b07facf7e"),),
         lambda s, out: convert_records.convert_emps(s[0], out),
     ),
+    # The optional set (`--extra`): six more tests of the damper, data/brfd/README.md's second table.
+    "brfd/char_1Hz_36lb_1in.csv": brfd(
+        "characterization datasets/1Hz36lbtension1amplitude.json",
+        sha256="e710058c4885fe151a4d8d3370586d4614e3626e62eb7455029ad5e8a2320740"),
+    "brfd/char_0.25Hz_30lb_0.5in.csv": brfd(
+        "characterization datasets/0.25Hz30lbtension0.5amplitude.json",
+        sha256="e3e83b088431c2027ca6b3c11f3be015dac67ab11bfa4293556184e852c74b34"),
+    "brfd/char_0.5Hz_0lb_1.5in.csv": brfd(
+        "characterization datasets/0.5Hz0lbtension1.5amplitude.json",
+        sha256="d86fe4103505a3249e523a6caa133559a4da93d53dda5094b700fb0b14045913"),
+    "brfd/char_2Hz_36lb_0.5in.csv": brfd(
+        "characterization datasets/2Hz36lbtension0.5amplitude.json",
+        sha256="30db5d48cbf6eed80e2838e5185a0b26eb9108aac64fc2dcdf0e2dcbedd7c4be"),
+    "brfd/KocaeliMCE_36lb.csv": brfd(
+        "earthquake profiles/KocaeliMCE.json",
+        sha256="029d9b68385ff3a6a62b7728e1307b46b4f78601cdb92716f3c2aab00de552bc"),
+    "brfd/d1_char_0.5Hz_35lb.csv": brfd(
+        "characterization datasets/0.5Hz35lbtension.json", dataset="dataset-1",
+        sha256="15372efa141b1cf8ba7e8166bc37f51084f2f2ab76b466df4ee93f999fcbb5c2"),
 }
 
 
@@ -234,16 +257,20 @@ def main(argv=None) -> int:
                    help="copy the records from DIR (same layout as data/) instead of downloading them")
     p.add_argument("--to", metavar="DIR", type=pathlib.Path, default=None,
                    help=f"where to put them (default: ${data_records.DATA_ENV} when set, otherwise data/)")
+    p.add_argument("--extra", action="store_true",
+                   help="also the optional set (the rows marked `extra` in data/*/README.md)")
     p.add_argument("records", nargs="*", metavar="NAME",
-                   help="only these records (as folder/file.csv; default: every record of data/*/README.md)")
+                   help="only these records (as folder/file.csv, of either set; default: the default set of "
+                   "data/*/README.md, and the optional set with --extra)")
     a = p.parse_args(argv)
-    known = data_records.manifest()
+    default, optional = data_records.manifest(), data_records.manifest(extra=True)
+    known = {**default, **optional}
     unknown = [n for n in a.records if n not in known]
     if unknown:
         p.error(f"unknown record {', '.join(unknown)}; known: {', '.join(sorted(known))}")
     if a.from_dir is not None and not a.from_dir.is_dir():
         p.error(f"--from {a.from_dir}: no such folder")
-    chosen = {n: known[n] for n in (a.records or known)}
+    chosen = {n: known[n] for n in (a.records or (known if a.extra else default))}
     dest_dir = a.to or data_records.data_dir()
     errors = fetch(chosen, dest_dir, a.from_dir)
     if errors:

@@ -17,12 +17,99 @@ def sha(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def test_the_manifest_lists_every_record_once_with_a_recipe():
-    records = data_records.manifest()
-    assert len(records) == 9, records
-    assert all(len(h) == 64 for h in records.values())
-    assert "emps/emps.csv" in records and "dc_generator/dc_generator.csv" in records
-    assert set(fetch_data.RECIPES) == set(records)
+# The default set, as it was before the optional set came: what the tests, CI (from its folder, without
+# internet access) and a plain `fetch_data.py` put in place.
+DEFAULT_SET = {
+    "brfd/char_0.5Hz_36lb_1in.csv": "a34eb31f50cadcb91556cf38ab249a3003882138013fa74d0b0536353ac42086",
+    "brfd/KocaeliDBE_36lb.csv": "df8c7f63e02681afaae5f2860dbb1303104dca608c3d81c1581de34cf4c42252",
+    "brfd/ImperialValleyDBE_36lb.csv": "318edb8854cce61c6f8df249811bede66f5de973351311789a7ffb5b7623b7ea",
+    "dc_generator/dc_generator.csv": "99b0cce8387b53122734fbfbe4d74b018202b7f6bbd2639895325e2fc715bb6e",
+    "emps/emps.csv": "e9e66e31e01c7c8e40a5cb779bdf431820515fb56c921d323f279db27b7cb2b1",
+    "servo/sts3215_hold.csv": "da1cc5dc2f4c62cafde635e47a26b0c633a8e760d8b122dd688776cccc3b3aa5",
+    "servo/sts3250_hold.csv": "2d234043d790f0d1adef156ef82a1059aa34ccb5081b98ef3a220769317e008c",
+    "tanks/tanks_est.csv": "669ca83d33e30730ef327a6de40e85f531c7ac3a58ad863119c6a86bcf40f166",
+    "tanks/tanks_val.csv": "e56903923b099158bc36b31120e1b25823ecc47afc6e0ff847d1e5b2e74bfc5e",
+}
+DAMPER = ("ARTS-Laboratory/Dataset-Friction-Damper-with-Backlash", "0e09aa9d950760277e31c08cd93fd01f39a5af09")
+
+
+def test_the_default_set_is_the_nine_records_and_every_record_has_a_recipe():
+    assert data_records.manifest() == DEFAULT_SET
+    extra = data_records.manifest(extra=True)
+    assert len(extra) == 6 and not set(extra) & set(DEFAULT_SET)
+    assert all(len(h) == 64 for h in extra.values())
+    assert set(fetch_data.RECIPES) == set(DEFAULT_SET) | set(extra)
+
+
+def test_the_optional_sets_recipes_name_one_pinned_damper_file_each():
+    for name in data_records.manifest(extra=True):
+        (source,) = fetch_data.RECIPES[name].sources
+        assert (source.repo, source.commit) == DAMPER, name
+        assert source.path.startswith(("data/dataset-1/", "data/dataset-2/")) and source.path.endswith(".json")
+        assert len(source.sha256) == 64 and int(source.sha256, 16) >= 0, name
+        url = source.url()
+        assert url.startswith(f"https://raw.githubusercontent.com/{DAMPER[0]}/{DAMPER[1]}/data/dataset-")
+        assert " " not in url and urllib.parse.unquote(url).endswith(source.path)
+    # Each source file appears once, and the README's source table names it beside the record.
+    paths = [fetch_data.RECIPES[n].sources[0].path for n in data_records.manifest(extra=True)]
+    assert len(set(paths)) == 6
+    readme = (data_records.ROOT / "data" / "brfd" / "README.md").read_text()
+    for name in data_records.manifest(extra=True):
+        source = fetch_data.RECIPES[name].sources[0]
+        row = next(line for line in readme.splitlines() if line.startswith(f"| {name.split('/')[1]} | "))
+        assert source.path in row and source.sha256 in row, name
+
+
+def test_only_extra_marks_the_optional_set_and_another_mark_is_an_error(tmp_path):
+    (tmp_path / "a").mkdir()
+    readme = tmp_path / "a" / "README.md"
+    readme.write_text(f"| file | sha256 |\n| --- | --- |\n| one.csv | {'1' * 64} |\n\n"
+                      f"| file | sha256 | set |\n| --- | --- | --- |\n| two.csv | {'2' * 64} | extra |\n"
+                      f"| three.csv | 7 | {'3' * 64} |\n")
+    assert data_records.manifest(tmp_path) == {"a/one.csv": "1" * 64}
+    assert data_records.manifest(tmp_path, extra=True) == {"a/two.csv": "2" * 64}
+    readme.write_text(f"| four.csv | {'4' * 64} | optional |\n")
+    with pytest.raises(ValueError, match="four.csv.*'optional'"):
+        data_records.manifest(tmp_path)
+
+
+@pytest.mark.parametrize("args, want", [
+    ([], "default"),
+    (["--from", "."], "default"),
+    (["--extra"], "both"),
+    (["--extra", "--from", "."], "both"),
+    (["brfd/KocaeliMCE_36lb.csv"], "named"),
+])
+def test_the_default_run_asks_for_the_default_set_only(monkeypatch, tmp_path, args, want):
+    asked = {}
+
+    def fake_fetch(records, dest_dir, from_dir):
+        asked.update(records=dict(records), from_dir=from_dir)
+        return []
+
+    monkeypatch.setattr(fetch_data, "fetch", fake_fetch)
+    monkeypatch.chdir(tmp_path)
+    assert fetch_data.main([*args, "--to", str(tmp_path / "data")]) == 0
+    extra = data_records.manifest(extra=True)
+    expected = {"default": DEFAULT_SET, "both": {**DEFAULT_SET, **extra},
+                "named": {"brfd/KocaeliMCE_36lb.csv": extra["brfd/KocaeliMCE_36lb.csv"]}}[want]
+    assert asked["records"] == expected
+    assert (asked["from_dir"] is None) == ("--from" not in args)
+
+
+def test_an_optional_record_is_made_from_its_json_like_the_others(tmp_path, monkeypatch):
+    """The download path of an optional record's recipe with its source served from a local file (file: URL),
+    on a made-up damper test in the source's layout (rows of time, displacement, force, velocity, ...)."""
+    doc = b'{"data": [[0.0, -0.25, 0.125, 1.0, 2.0, 3.0], [0.0009765625, -0.2500000000001, -3.5, 0, 0, 0]], "dt": 1}'
+    recipe = fetch_data.RECIPES["brfd/d1_char_0.5Hz_35lb.csv"]
+    src = a_source(tmp_path, {f"r/c/{recipe.sources[0].path}": doc})
+    monkeypatch.setattr(fetch_data.Source, "url",
+                        lambda s: "file://" + urllib.parse.quote(str(src / "r" / "c" / s.path)))
+    source = fetch_data.Source("r", "c", recipe.sources[0].path, sha(doc))
+    monkeypatch.setattr(fetch_data, "RECIPES", {"brfd/d1.csv": fetch_data.Recipe((source,), recipe.convert)})
+    out = b"t,u,y\n0,-0.25,0.125\n0.0009765625,-0.25,-3.5\n"
+    assert fetch_data.fetch({"brfd/d1.csv": sha(out)}, tmp_path / "data", None) == []
+    assert (tmp_path / "data" / "brfd" / "d1.csv").read_bytes() == out
 
 
 def test_a_missing_record_names_itself_and_the_fetch_command(tmp_path, monkeypatch):
