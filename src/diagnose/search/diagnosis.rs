@@ -243,6 +243,50 @@ pub struct Explained {
     pub heldout_input_std_ratio: f64,
     /// The input's range (max - min) on the held-out part over the fit part's.
     pub heldout_input_range_ratio: f64,
+    /// The split that excites the held-out part best (see [`best_split`]): its fit fraction ...
+    pub best_fit_fraction: f64,
+    /// ... and how alike its two parts are excited (see [`best_split`]; 1: alike).
+    pub best_heldout_excitation: f64,
+}
+
+/// The fit fractions [`best_split`] tries: 0.30 to 0.95 by 0.05 (those `--fit-fraction` accepts).
+const SPLITS: std::ops::RangeInclusive<u32> = 6..=19;
+
+/// The input's excitation on the held-out part over the fit part's at the split `n_fit`: the smaller of the
+/// ratios of standard deviation and of range (`NaN` where the fit part's input is constant).
+fn excitation(u: &[f64], n_fit: usize) -> (f64, f64) {
+    let range = |v: &[f64]| {
+        v.iter().fold(f64::NEG_INFINITY, |m, a| m.max(*a))
+            - v.iter().fold(f64::INFINITY, |m, a| m.min(*a))
+    };
+    let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { f64::NAN };
+    let (fit, held) = u.split_at(n_fit);
+    (
+        ratio(std_dev(held), std_dev(fit)),
+        ratio(range(held), range(fit)),
+    )
+}
+
+/// The fit fraction (0.30 to 0.95 by 0.05) whose two parts' inputs are excited most alike, and how alike:
+/// the smallest of the two ratios (held-out input over fit input: standard deviation, range) and their
+/// inverses (1: alike; a quiet held-out part judges the models on little, a quiet fit part asks them to
+/// extrapolate). Where the record's excitation sits in one short stretch no split is fair.
+pub fn best_split(u: &[f64]) -> (f64, f64) {
+    SPLITS
+        .map(|k| f64::from(k) / 20.0)
+        .filter_map(|f| {
+            let n_fit = crate::diagnose::fit::structure::fit_len(u.len(), f);
+            let (s, r) = excitation(u, n_fit);
+            let alike = s.min(r).min(1.0 / s).min(1.0 / r);
+            alike.is_finite().then_some((f, alike))
+        })
+        .fold((f64::NAN, f64::NAN), |best, c| {
+            if best.1.is_nan() || c.1 > best.1 {
+                c
+            } else {
+                best
+            }
+        })
 }
 
 /// Below this fit (percent) the final model explains little of the held-out part.
@@ -259,11 +303,8 @@ impl Explained {
         let (held, model) = (&y[n_fit..], &y_hat[n_fit..]);
         let err = crate::stats::rms_diff(held, model);
         let spread = std_dev(held);
-        let range = |v: &[f64]| {
-            v.iter().fold(f64::NEG_INFINITY, |m, a| m.max(*a))
-                - v.iter().fold(f64::INFINITY, |m, a| m.min(*a))
-        };
-        let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { f64::NAN };
+        let (std_ratio, range_ratio) = excitation(u, n_fit);
+        let (best_fit_fraction, best_heldout_excitation) = best_split(u);
         Self {
             fit_percent: if spread > 0.0 {
                 100.0 * (1.0 - err / spread)
@@ -274,8 +315,10 @@ impl Explained {
                 let level = crate::stats::mean(&y[..n_fit]);
                 crate::stats::rms(held.iter().map(|a| a - level))
             },
-            heldout_input_std_ratio: ratio(std_dev(&u[n_fit..]), std_dev(&u[..n_fit])),
-            heldout_input_range_ratio: ratio(range(&u[n_fit..]), range(&u[..n_fit])),
+            heldout_input_std_ratio: std_ratio,
+            heldout_input_range_ratio: range_ratio,
+            best_fit_fraction,
+            best_heldout_excitation,
         }
     }
 
@@ -298,13 +341,32 @@ impl Explained {
         if s < POOR_EXCITATION || r < POOR_EXCITATION {
             w.push(format!(
                 "the held-out part is poorly excited: its input's standard deviation is {:.0}% and its range \
-                 {:.0}% of the fit part's, so its errors judge the models on little (a quiet tail); move the \
-                 split with --fit-fraction or record more excitation after the fit part",
+                 {:.0}% of the fit part's, so its errors judge the models on little (a quiet tail); {}",
                 100.0 * s,
-                100.0 * r
+                100.0 * r,
+                self.fairer_split()
             ));
         }
         w
+    }
+
+    /// What to do about a poorly excited held-out part: the split that excites it, or that none does.
+    fn fairer_split(&self) -> String {
+        let (f, e) = (self.best_fit_fraction, self.best_heldout_excitation);
+        if e >= POOR_EXCITATION {
+            format!(
+                "--fit-fraction {f:.2} excites the two parts most alike (each part's input has at least {:.0}% of \
+                 the other's standard deviation and range; the best split from 0.30 to 0.95)",
+                100.0 * e
+            )
+        } else {
+            format!(
+                "no split from --fit-fraction 0.30 to 0.95 gives each part's input a quarter of the other's \
+                 standard deviation and range (the best, {f:.2}, gives {:.0}%): no held-out test on this record \
+                 is fair; record more excitation, spread over the record",
+                100.0 * e
+            )
+        }
     }
 }
 
@@ -426,4 +488,63 @@ pub struct CrossValidation {
     pub before: Vec<f64>,
     #[serde(skip)]
     pub after: Vec<f64>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An input of `n` samples excited (a deterministic spread over -1..1) where `loud` says, nearly still
+    /// (a thousandth of that) elsewhere.
+    fn input(n: usize, loud: impl Fn(f64) -> bool) -> Vec<f64> {
+        (0..n)
+            .map(|k| {
+                let v = ((k * 7919) % 1000) as f64 / 500.0 - 1.0;
+                if loud(k as f64 / n as f64) {
+                    v
+                } else {
+                    1e-3 * v
+                }
+            })
+            .collect()
+    }
+
+    fn warned(u: &[f64], fraction: f64) -> Vec<String> {
+        let n_fit = crate::diagnose::fit::structure::fit_len(u.len(), fraction);
+        let y = vec![0.0; u.len()];
+        let e = Explained::of(u, &y, &y, n_fit);
+        e.warnings(0.0)
+            .into_iter()
+            .filter(|w| w.contains("poorly excited"))
+            .collect()
+    }
+
+    /// A record excited in its first half and its last tenth: the split at 0.85 excites both parts alike
+    /// (the held-out part then holds the loud tail and a little of the still stretch).
+    #[test]
+    fn the_best_split_excites_both_parts_alike() {
+        let u = input(4000, |t| !(0.5..0.9).contains(&t));
+        let (f, alike) = best_split(&u);
+        assert!((f - 0.85).abs() < 1e-9, "split {f}, alike {alike}");
+        assert!(alike > 0.8, "alike {alike}");
+    }
+
+    /// A quiet tail after the default split: the warning names the split that excites both parts best; an
+    /// excitation in one short stretch: the warning says that no split is fair.
+    #[test]
+    fn a_quiet_held_out_part_is_told_where_to_split_or_that_no_split_is_fair() {
+        let tail = warned(&input(4000, |t| t < 0.65), 0.7);
+        assert_eq!(tail.len(), 1, "{tail:?}");
+        assert!(
+            tail[0].contains("--fit-fraction 0.30 excites the two parts most alike"),
+            "{tail:?}"
+        );
+        let burst = warned(&input(4000, |t| (0.51..0.54).contains(&t)), 0.7);
+        assert_eq!(burst.len(), 1, "{burst:?}");
+        assert!(
+            burst[0].contains("no held-out test on this record is fair"),
+            "{burst:?}"
+        );
+        assert!(warned(&input(4000, |_| true), 0.7).is_empty());
+    }
 }
