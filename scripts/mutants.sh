@@ -1,12 +1,20 @@
 #!/usr/bin/env bash
-# Mutation samples of the FMI boundary (src/fmi, src/fmi2, src/fmi3, src/fmus) with cargo-mutants 27, a shard
-# at a time: a mutant is caught when a test fails, missed when all pass, unviable when it does not compile.
+# Mutation samples of the FMI boundary (src/fmi, src/fmi2, src/fmi3, src/fmus), of src/diagnose/effects and of
+# src/identify/mrgia.rs with cargo-mutants 27, a shard at a time: a mutant is caught when a test fails, missed
+# when all pass, unviable when it does not compile.
 #
 #   scripts/mutants.sh list           every mutant of the boundary, per file (nothing is built)
 #   scripts/mutants.sh state          every mutant of the FMU-state checks (src/fmi/fmu_state.rs: check_layer,
 #                                     the header, the model's sample count)
 #   scripts/mutants.sh shard K N      shard K of N (0-based) of the whole boundary, round-robin over the list
 #                                     of mutants (file by file), so that a shard samples every file
+#   scripts/mutants.sh effects K N    shard K of N of src/diagnose/effects (about 1060 mutants; N = 30 runs
+#                                     about 35), against the tests that cover it: the effects' unit tests
+#                                     (`diagnose::effects`) and the bench's tests of each effect's draw
+#                                     (`diagnose::bench::draw_tests`, `curved_border_draws`), under a second
+#   scripts/mutants.sh mrgia K N      shard K of N of src/identify/mrgia.rs without the state checks that
+#                                     `TryFrom<MrgiaState>` selects (about 220 mutants; N = 7 runs about 31),
+#                                     against the library's `mrgia` unit tests (under a second)
 #
 # Tests (the faster subset that covers the boundary, release build, filter `fmi`): the library's unit tests of
 # the FMI layers (`fmi::`, `fmi2::`, `fmi3::`: the state checks, the state tables) and the integration tests of
@@ -51,8 +59,18 @@ shard)
     run "${files[@]}" --sharding round-robin --shard "$2/$3" \
         -C --lib -C --test=integration -- fmi
     ;;
+effects)
+    [ $# -eq 3 ] || { echo "usage: $0 effects K N" >&2; exit 2; }
+    run -f 'src/diagnose/effects/*.rs' -f 'src/diagnose/effects/**/*.rs' --sharding round-robin \
+        --shard "$2/$3" -C --lib -- diagnose::effects diagnose::bench::draw_tests curved_border_draws
+    ;;
+mrgia)
+    [ $# -eq 3 ] || { echo "usage: $0 mrgia K N" >&2; exit 2; }
+    run -f src/identify/mrgia.rs --exclude-re 'TryFrom<MrgiaState>' --sharding round-robin \
+        --shard "$2/$3" -C --lib -- mrgia
+    ;;
 *)
-    sed -n '2,31p' "$0" >&2
+    sed -n '2,34p' "$0" >&2
     exit 2
     ;;
 esac
