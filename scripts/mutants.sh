@@ -61,8 +61,9 @@ shard)
     ;;
 effects)
     [ $# -eq 3 ] || { echo "usage: $0 effects K N" >&2; exit 2; }
+    # Several filters: after a second `--` they go to the test binary (`cargo test` takes one).
     run -f 'src/diagnose/effects/*.rs' -f 'src/diagnose/effects/**/*.rs' --sharding round-robin \
-        --shard "$2/$3" -C --lib -- diagnose::effects diagnose::bench::draw_tests curved_border_draws
+        --shard "$2/$3" -C --lib -- -- diagnose::effects diagnose::bench::draw_tests curved_border_draws
     ;;
 mrgia)
     [ $# -eq 3 ] || { echo "usage: $0 mrgia K N" >&2; exit 2; }

@@ -197,7 +197,10 @@ fn rho_for_every_exponent() {
         for k in [0u64, 1, 7, 999] {
             let want = ((k + 1) as f64).powf(-rho_exp);
             let got = cfg.rho(k);
-            assert!((got - want).abs() < 1e-15, "rho_exp {rho_exp}, k {k}: {got}");
+            assert!(
+                (got - want).abs() < 1e-15,
+                "rho_exp {rho_exp}, k {k}: {got}"
+            );
         }
     }
 }

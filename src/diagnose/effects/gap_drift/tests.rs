@@ -80,5 +80,11 @@ fn parameters_report_the_gaps_at_both_ends() {
     assert_eq!(got("c2_rate_per_s"), Some(-(2f64.powi(-11))));
     let per_sample = GapDrift.parameters(&fitted(None));
     assert_eq!(per_sample.get("c1_rate_per_s"), None);
-    assert_eq!(GapDrift.parameters(&Fitted { model: &plain, ..fitted(None) }), Parameters::new());
+    assert_eq!(
+        GapDrift.parameters(&Fitted {
+            model: &plain,
+            ..fitted(None)
+        }),
+        Parameters::new()
+    );
 }
