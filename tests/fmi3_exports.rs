@@ -625,6 +625,36 @@ fn instance_without_a_logger_works() {
     unsafe { fmi3FreeInstance(c) };
 }
 
+/// Every variable is a scalar: fmi3SetFloat64 and fmi3GetFloat64 with nValues other than nValueReferences
+/// are fmi3Error, logged under the call's name with both counts (each on a fresh instance in
+/// initialization mode, where both calls are legal).
+#[test]
+fn value_counts_must_equal_the_references() {
+    for kind in Kind::ALL {
+        let u = kind.input();
+        let (vals, mut out) = ([0.25, 0.75], [0.0; 2]);
+        let calls: [(&str, &dyn Fn(Fmi3Instance, &mut [f64; 2]) -> u32); 2] = [
+            ("fmi3SetFloat64", &|c, _| unsafe {
+                fmi3SetFloat64(c, &u, 1, vals.as_ptr(), 2)
+            }),
+            ("fmi3GetFloat64", &|c, out| unsafe {
+                fmi3GetFloat64(c, &u, 1, out.as_mut_ptr(), 2)
+            }),
+        ];
+        for (name, call) in calls {
+            let f = Fmu::new(kind, "counts");
+            f.drive(State::InitializationMode);
+            assert_eq!(call(f.c, &mut out), 3, "{kind:?} {name}");
+            let (status, _, message) = f.last_log().expect("a log line");
+            assert_eq!(status, 3, "{message}");
+            assert!(
+                message.contains(name) && message.contains("nValues = 2 but nValueReferences = 1"),
+                "{kind:?}: {message}"
+            );
+        }
+    }
+}
+
 /// The FMI 2.0 exports on the same model and inputs, for the bit-for-bit comparison.
 fn fmi2_outputs(
     kind: Kind,
