@@ -415,6 +415,43 @@ mod tests {
     use crate::identify::oe::online::monitor::study::{Change, Scenario, noise_std};
     use crate::plant::PlantParams;
 
+    /// The estimates as read: a_i for i < na and b_j for j <= nb (0 beyond the orders), c1, c2 and the
+    /// play c1 + c2, the numbers of the library's MRGIA run on the same samples with the same settings.
+    #[test]
+    fn outputs_are_the_estimate_within_the_orders() {
+        let u = crate::identify::mrgia::paper_input(400, 3);
+        let y: Vec<f64> = crate::plant::Plant::simulate(PlantParams::PAPER, &u)
+            .unwrap()
+            .iter()
+            .map(|o| o.w)
+            .collect();
+        let mut fmu = EstimatorFmu::new();
+        fmu.exit_initialization().unwrap();
+        for (uk, yk) in u.iter().zip(&y) {
+            fmu.set(Var::U, Value::Real(*uk));
+            fmu.set(Var::Y, Value::Real(*yk));
+            fmu.step(1).unwrap();
+        }
+        let (_, lib) =
+            crate::identify::mrgia::identify(MrgiaConfig::paper(2, 0, 1), &u, &y).unwrap();
+        let t = lib.theta();
+        assert!(t.iter().all(|v| *v != 0.0), "{t:?}");
+        let expected = [
+            (Var::A1, t[0]),
+            (Var::A2, t[1]),
+            (Var::A3, 0.0),
+            (Var::A4, 0.0),
+            (Var::B0, t[2]),
+            (Var::B1, 0.0),
+            (Var::C1, t[4]),
+            (Var::C2, t[5]),
+            (Var::Play, t[4] + t[5]),
+        ];
+        for (var, value) in expected {
+            assert_eq!(fmu.get(var), Value::Real(value), "{var:?}");
+        }
+    }
+
     /// `wear_reset` true for one sample clears the latched alarm and onset; a growth that goes on alarms again.
     #[test]
     fn wear_reset_clears_the_latched_alarm() {
