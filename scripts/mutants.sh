@@ -16,8 +16,9 @@
 #                                     `TryFrom<MrgiaState>` selects (about 220 mutants; N = 7 runs about 31),
 #                                     against the library's `mrgia` unit tests (under a second)
 #
-# Tests (the faster subset that covers the boundary, release build, filter `fmi`): the library's unit tests of
-# the FMI layers (`fmi::`, `fmi2::`, `fmi3::`: the state checks, the state tables) and the integration tests of
+# Tests (the faster subset that covers the boundary, release build, filters `fmi` and `fmus::`): the library's
+# unit tests of the FMI layers (`fmi::`, `fmi2::`, `fmi3::`: the state checks, the state tables) and of the
+# FMUs' models (`fmus::`: the seam, each model's settings and outputs) and the integration tests of
 # the FMI layers (tests/fmi_*.rs, tests/fmi3_exports.rs: forged states, the state machine, timing, threads,
 # the exports) with the two call-sequence fuzzers cut to FMI_FUZZ_CALLS / FMI3_FUZZ_CALLS calls per FMU
 # (default 3000 each, against 120,000 and 20,000 in the full test run). `state` runs only the unit tests
@@ -57,7 +58,7 @@ state)
 shard)
     [ $# -eq 3 ] || { echo "usage: $0 shard K N" >&2; exit 2; }
     run "${files[@]}" --sharding round-robin --shard "$2/$3" \
-        -C --lib -C --test=integration -- fmi
+        -C --lib -C --test=integration -- -- fmi fmus::
     ;;
 effects)
     [ $# -eq 3 ] || { echo "usage: $0 effects K N" >&2; exit 2; }
@@ -71,7 +72,7 @@ mrgia)
         --shard "$2/$3" -C --lib -- mrgia
     ;;
 *)
-    sed -n '2,34p' "$0" >&2
+    sed -n '2,35p' "$0" >&2
     exit 2
     ;;
 esac
