@@ -1,15 +1,24 @@
 #!/usr/bin/env bash
-# Mutation samples of the FMI boundary (src/fmi, src/fmi2, src/fmi3, src/fmus) with cargo-mutants 27, a shard
-# at a time: a mutant is caught when a test fails, missed when all pass, unviable when it does not compile.
+# Mutation samples of the FMI boundary (src/fmi, src/fmi2, src/fmi3, src/fmus), of src/diagnose/effects and of
+# src/identify/mrgia.rs with cargo-mutants 27, a shard at a time: a mutant is caught when a test fails, missed
+# when all pass, unviable when it does not compile.
 #
 #   scripts/mutants.sh list           every mutant of the boundary, per file (nothing is built)
 #   scripts/mutants.sh state          every mutant of the FMU-state checks (src/fmi/fmu_state.rs: check_layer,
 #                                     the header, the model's sample count)
 #   scripts/mutants.sh shard K N      shard K of N (0-based) of the whole boundary, round-robin over the list
 #                                     of mutants (file by file), so that a shard samples every file
+#   scripts/mutants.sh effects K N    shard K of N of src/diagnose/effects (about 1060 mutants; N = 30 runs
+#                                     about 35), against the tests that cover it: the effects' unit tests
+#                                     (`diagnose::effects`) and the bench's tests of each effect's draw
+#                                     (`diagnose::bench::draw_tests`, `curved_border_draws`), under a second
+#   scripts/mutants.sh mrgia K N      shard K of N of src/identify/mrgia.rs without the state checks that
+#                                     `TryFrom<MrgiaState>` selects (about 220 mutants; N = 7 runs about 31),
+#                                     against the library's `mrgia` unit tests (under a second)
 #
-# Tests (the faster subset that covers the boundary, release build, filter `fmi`): the library's unit tests of
-# the FMI layers (`fmi::`, `fmi2::`, `fmi3::`: the state checks, the state tables) and the integration tests of
+# Tests (the faster subset that covers the boundary, release build, filters `fmi` and `fmus::`): the library's
+# unit tests of the FMI layers (`fmi::`, `fmi2::`, `fmi3::`: the state checks, the state tables) and of the
+# FMUs' models (`fmus::`: the seam, each model's settings and outputs) and the integration tests of
 # the FMI layers (tests/fmi_*.rs, tests/fmi3_exports.rs: forged states, the state machine, timing, threads,
 # the exports) with the two call-sequence fuzzers cut to FMI_FUZZ_CALLS / FMI3_FUZZ_CALLS calls per FMU
 # (default 3000 each, against 120,000 and 20,000 in the full test run). `state` runs only the unit tests
@@ -49,10 +58,21 @@ state)
 shard)
     [ $# -eq 3 ] || { echo "usage: $0 shard K N" >&2; exit 2; }
     run "${files[@]}" --sharding round-robin --shard "$2/$3" \
-        -C --lib -C --test=integration -- fmi
+        -C --lib -C --test=integration -- -- fmi fmus::
+    ;;
+effects)
+    [ $# -eq 3 ] || { echo "usage: $0 effects K N" >&2; exit 2; }
+    # Several filters: after a second `--` they go to the test binary (`cargo test` takes one).
+    run -f 'src/diagnose/effects/*.rs' -f 'src/diagnose/effects/**/*.rs' --sharding round-robin \
+        --shard "$2/$3" -C --lib -- -- diagnose::effects diagnose::bench::draw_tests curved_border_draws
+    ;;
+mrgia)
+    [ $# -eq 3 ] || { echo "usage: $0 mrgia K N" >&2; exit 2; }
+    run -f src/identify/mrgia.rs --exclude-re 'TryFrom<MrgiaState>' --sharding round-robin \
+        --shard "$2/$3" -C --lib -- mrgia
     ;;
 *)
-    sed -n '2,31p' "$0" >&2
+    sed -n '2,35p' "$0" >&2
     exit 2
     ;;
 esac

@@ -625,6 +625,35 @@ fn instance_without_a_logger_works() {
     unsafe { fmi3FreeInstance(c) };
 }
 
+/// Every variable is a scalar: fmi3SetFloat64 and fmi3GetFloat64 with nValues other than nValueReferences
+/// are fmi3Error, logged under the call's name with both counts (each on a fresh instance in
+/// initialization mode, where both calls are legal).
+#[test]
+fn value_counts_must_equal_the_references() {
+    for kind in Kind::ALL {
+        let u = kind.input();
+        let (vals, mut out) = ([0.25, 0.75], [0.0; 2]);
+        for name in ["fmi3SetFloat64", "fmi3GetFloat64"] {
+            let f = Fmu::new(kind, "counts");
+            f.drive(State::InitializationMode);
+            let code = unsafe {
+                if name == "fmi3SetFloat64" {
+                    fmi3SetFloat64(f.c, &u, 1, vals.as_ptr(), 2)
+                } else {
+                    fmi3GetFloat64(f.c, &u, 1, out.as_mut_ptr(), 2)
+                }
+            };
+            assert_eq!(code, 3, "{kind:?} {name}");
+            let (status, _, message) = f.last_log().expect("a log line");
+            assert_eq!(status, 3, "{message}");
+            assert!(
+                message.contains(name) && message.contains("nValues = 2 but nValueReferences = 1"),
+                "{kind:?}: {message}"
+            );
+        }
+    }
+}
+
 /// The FMI 2.0 exports on the same model and inputs, for the bit-for-bit comparison.
 fn fmi2_outputs(
     kind: Kind,

@@ -58,3 +58,50 @@ impl LogSwitches {
 pub fn cstring(text: &str) -> CString {
     CString::new(text.replace('\0', " ")).unwrap_or_default()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// With logging on, the categories asked for are on (none or `logAll`: all); with logging off, the
+    /// defaults stay (discards and warnings, not calls); refusals are logged either way; a category the
+    /// model does not declare is refused by name.
+    #[test]
+    fn the_switches_follow_the_categories_asked_for() {
+        let known = [
+            "logStatusWarning",
+            "logStatusDiscard",
+            "logStatusError",
+            "logCalls",
+            "logAll",
+        ];
+        let ask = |on, categories: &[&str]| {
+            let categories: Vec<String> = categories.iter().map(|c| c.to_string()).collect();
+            LogSwitches::requested(on, &categories, &known)
+                .map(|s| (s.errors, s.discards, s.warnings, s.calls))
+        };
+        let all = (true, true, true, true);
+        assert_eq!(
+            ask(true, &["logStatusWarning"]),
+            Ok((true, false, true, false))
+        );
+        assert_eq!(
+            ask(true, &["logStatusDiscard", "logCalls"]),
+            Ok((true, true, false, true))
+        );
+        assert_eq!(
+            ask(true, &["logStatusError"]),
+            Ok((true, false, false, false))
+        );
+        assert_eq!((ask(true, &[]), ask(true, &["logAll"])), (Ok(all), Ok(all)));
+        let defaults = Ok((true, true, true, false));
+        assert_eq!(ask(false, &["logStatusWarning"]), defaults);
+        assert_eq!(ask(false, &["logCalls"]), defaults);
+        assert_eq!(ask(false, &[]), defaults);
+        let refused = ask(true, &["logEvents"]).unwrap_err();
+        assert!(
+            refused.contains("unknown log category 'logEvents'"),
+            "{refused}"
+        );
+    }
+}

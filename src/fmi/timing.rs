@@ -176,3 +176,22 @@ impl LayerState {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The first guess at the instants a step reaches, floor((end - start) / Ts), can be one too many:
+    /// 1.7 / 0.1 rounds to 17, but t_17 = 17 * 0.1 is 1.7000000000000002, one ulp after the end. A step of
+    /// one ulp to 1.7 from sample 16 (tolerance a quarter of the step) reaches no instant; a step of 0.05
+    /// (tolerance 1e-7 relative) reaches t_17.
+    #[test]
+    fn an_instant_after_the_end_beyond_the_tolerance_is_not_reached() {
+        let ulp = 1.7 - f64::from_bits(1.7f64.to_bits() - 1);
+        assert!(17.0 * 0.1 > 1.7 && (1.7f64 / 0.1).floor() == 17.0);
+        let mut l = LayerState::new(1);
+        l.samples = 16;
+        assert_eq!(l.instants_reached(0.1, 1.7, ulp), 0);
+        assert_eq!(l.instants_reached(0.1, 1.7, 0.05), 1);
+    }
+}

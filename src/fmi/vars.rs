@@ -178,3 +178,33 @@ impl VrTable {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each value read as each type: a number is true when it is not zero (also a fraction), a string when
+    /// it is not empty; true is 1; a string is no number.
+    #[test]
+    fn values_convert_as_their_types_say() {
+        let bools: Vec<bool> = [
+            Value::Real(0.5),
+            Value::Real(-2.0),
+            Value::Real(0.0),
+            Value::Integer(-3),
+            Value::Integer(0),
+            Value::Boolean(true),
+            Value::String("x".into()),
+            Value::String(String::new()),
+        ]
+        .iter()
+        .map(Value::as_bool)
+        .collect();
+        assert_eq!(bools, [true, true, false, true, false, true, true, false]);
+        assert_eq!(Value::Real(-2.7).as_integer(), -2);
+        assert_eq!(Value::Boolean(true).as_integer(), 1);
+        assert_eq!(Value::Integer(-3).as_real(), -3.0);
+        assert_eq!(Value::Boolean(false).as_real(), 0.0);
+        assert!(Value::String("1".into()).as_real().is_nan());
+    }
+}

@@ -415,6 +415,101 @@ mod tests {
     use crate::identify::oe::online::monitor::study::{Change, Scenario, noise_std};
     use crate::plant::PlantParams;
 
+    /// 400 samples of the paper's plant (noise-free backlash output).
+    fn paper_samples() -> (Vec<f64>, Vec<f64>) {
+        let u = crate::identify::mrgia::paper_input(400, 3);
+        let y = crate::plant::Plant::simulate(PlantParams::PAPER, &u)
+            .unwrap()
+            .iter()
+            .map(|o| o.w)
+            .collect();
+        (u, y)
+    }
+
+    /// `fmu` initialised and stepped once per sample of `u`, `y`.
+    fn feed(fmu: &mut EstimatorFmu, u: &[f64], y: &[f64]) {
+        fmu.exit_initialization().unwrap();
+        for (uk, yk) in u.iter().zip(y) {
+            fmu.set(Var::U, Value::Real(*uk));
+            fmu.set(Var::Y, Value::Real(*yk));
+            fmu.step(1).unwrap();
+        }
+    }
+
+    /// The library's MRGIA with `cfg` on `u`, `y`: its theta.
+    fn library_theta(cfg: MrgiaConfig, u: &[f64], y: &[f64]) -> Vec<f64> {
+        let (_, lib) = crate::identify::mrgia::identify(cfg, u, y).unwrap();
+        lib.theta().to_vec()
+    }
+
+    /// The estimates as read: a_i for i < na and b_j for j <= nb (0 beyond the orders), c1, c2 and the
+    /// play c1 + c2, the numbers of the library's MRGIA run on the same samples with the same settings.
+    #[test]
+    fn outputs_are_the_estimate_within_the_orders() {
+        let (u, y) = paper_samples();
+        let mut fmu = EstimatorFmu::new();
+        feed(&mut fmu, &u, &y);
+        let t = library_theta(MrgiaConfig::paper(2, 0, 1), &u, &y);
+        assert!(t.iter().all(|v| *v != 0.0), "{t:?}");
+        let expected = [
+            (Var::A1, t[0]),
+            (Var::A2, t[1]),
+            (Var::A3, 0.0),
+            (Var::A4, 0.0),
+            (Var::B0, t[2]),
+            (Var::B1, 0.0),
+            (Var::C1, t[4]),
+            (Var::C2, t[5]),
+            (Var::Play, t[4] + t[5]),
+        ];
+        for (var, value) in expected {
+            assert_eq!(fmu.get(var), Value::Real(value), "{var:?}");
+        }
+    }
+
+    /// The orders, the delay and the floor on rho set as parameters are the running estimator's, also with
+    /// `recommended` (which replaces the convergence settings but keeps rho_min): its estimates are the
+    /// library's with those settings. rho_min = 0.3 binds from sample 123 with the paper's exponent and
+    /// from sample 4 with the recommended one.
+    #[test]
+    fn parameters_reach_the_running_estimator() {
+        let (u, y) = paper_samples();
+        for recommended in [false, true] {
+            let mut fmu = EstimatorFmu::new();
+            fmu.set(Var::Na, Value::Integer(1));
+            fmu.set(Var::Nb, Value::Integer(1));
+            fmu.set(Var::Delay, Value::Integer(2));
+            fmu.set(Var::RhoMin, Value::Real(0.3));
+            fmu.set(Var::Recommended, Value::Boolean(recommended));
+            feed(&mut fmu, &u, &y);
+            let base = if recommended {
+                MrgiaConfig::recommended(1, 1, 2)
+            } else {
+                MrgiaConfig::paper(1, 1, 2)
+            };
+            let t = library_theta(
+                MrgiaConfig {
+                    rho_min: 0.3,
+                    ..base
+                },
+                &u,
+                &y,
+            );
+            let expected = [
+                (Var::A1, t[0]),
+                (Var::A2, 0.0),
+                (Var::B0, t[1]),
+                (Var::B1, t[2]),
+                (Var::B2, 0.0),
+                (Var::C1, t[4]),
+                (Var::C2, t[5]),
+            ];
+            for (var, value) in expected {
+                assert_eq!(fmu.get(var), Value::Real(value), "{recommended} {var:?}");
+            }
+        }
+    }
+
     /// `wear_reset` true for one sample clears the latched alarm and onset; a growth that goes on alarms again.
     #[test]
     fn wear_reset_clears_the_latched_alarm() {

@@ -532,3 +532,31 @@ impl Model for PlantFmu {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The saturation's limits may meet (a constant output) but not cross: sat_lo above sat_hi is refused
+    /// at initialisation by name, with either switch on; off, the limits are not looked at.
+    #[test]
+    fn saturation_limits_may_meet_but_not_cross() {
+        let init = |switch: i32, lo: f64, hi: f64| {
+            let mut fmu = PlantFmu::new();
+            fmu.set(Var::Saturation, Value::Integer(switch));
+            fmu.set(Var::SatLo, Value::Real(lo));
+            fmu.set(Var::SatHi, Value::Real(hi));
+            fmu.exit_initialization()
+        };
+        for switch in [1, 2] {
+            assert_eq!(init(switch, 0.5, 0.5), Ok(()));
+            assert_eq!(init(switch, -1.0, 1.0), Ok(()));
+            let err = init(switch, 0.6, 0.5).unwrap_err();
+            assert!(
+                err.contains("sat_lo") && err.contains("must not exceed sat_hi"),
+                "{err}"
+            );
+        }
+        assert_eq!(init(0, 0.6, 0.5), Ok(()));
+    }
+}

@@ -190,6 +190,27 @@ mod tests {
         );
     }
 
+    /// The reported parameters are the fitted noise model's order and coefficients; a model without one
+    /// reports none.
+    #[test]
+    fn parameters_are_the_fitted_ar_model() {
+        let plain = paper();
+        let m = plain.with(extension(vec![0.5, -0.25]));
+        let fitted = |model| Fitted {
+            model,
+            current: &plain,
+            n: 100,
+            ts: None,
+            output_level: 0.0,
+        };
+        let p = ColouredNoise.parameters(&fitted(&m));
+        assert_eq!(
+            serde_json::to_string(&p).unwrap(),
+            r#"{"ar_order":2,"phi":[0.5,-0.25]}"#
+        );
+        assert_eq!(ColouredNoise.parameters(&fitted(&plain)), Parameters::new());
+    }
+
     /// An AR(1) residual e(k) = 0.6 e(k-1) + v(k), v(k) = sin(1.7 k^1.3) + 0.5 cos(0.9 k), k < 60: by
     /// NumPy least squares (conditional, as `ar_ls`) and BIC n ln(rss / n) + p ln n over orders 1..3, the
     /// order 2 wins (-40.33 against -30.90 and -37.83) with phi = [1.00544, -0.43992].

@@ -4,7 +4,7 @@
 //! the two sets' steady states would cross at the input's zero, which about an operating point (or in a
 //! sensor's units) is arbitrary.
 
-use crate::diagnose::effects::figure::{Figure, over_time};
+use crate::diagnose::effects::figure::{Figure, held_out_stretch, over_time};
 use crate::diagnose::effects::rig::{Draw, Rig};
 use crate::diagnose::effects::{Effect, EffectId, Fitted, Parameters, Plan, StartContext};
 use crate::diagnose::fit::model::{
@@ -160,11 +160,10 @@ impl Effect for DirectionDependent {
 
     /// The held-out output over time, at most 400 samples so that single rises and falls show.
     fn evidence(&self, fig: &Figure) -> Result<String, PlotError> {
-        let nf = fig.n_fit;
         over_time(
             fig,
             "Evidence for direction-dependent: rises and falls (held-out part)",
-            (nf, fig.n.min(nf + 400)),
+            held_out_stretch(fig, 400),
             false,
         )?;
         Ok(format!(
@@ -210,6 +209,24 @@ mod tests {
         assert_eq!(a[..2], [0.1, 0.2]);
         assert!(a[2..].iter().chain(&b[1..]).all(|v| *v == 0.0));
         assert_eq!(b[0], 0.3);
+    }
+
+    /// Poles scaled by s: a_i s^i, b rescaled to the same static gain. x(k) = 0.5 x(k-1) + u: a = [-0.5], gain
+    /// 2; at s = 0.5, a = [-0.25] and b = 1.5 keep the gain (1.5 / 0.75). Second order at s = 2: a_1 2,
+    /// a_2 4. No pole, an unstable scaled block, or no static gain: none.
+    #[test]
+    fn scaled_poles_by_hand() {
+        assert_eq!(
+            scaled_poles(&[-0.5], &[1.0], 0.5),
+            Some((vec![-0.25], vec![1.5]))
+        );
+        let (a, b) = scaled_poles(&[-0.25, 0.125], &[0.5, 0.25], 2.0).unwrap();
+        assert_eq!(a, [-0.5, 0.5]);
+        // Gain (0.5 + 0.25) / (1 - 0.25 + 0.125) kept: b times (1 - 0.5 + 0.5) / 0.875.
+        assert_eq!(b, [0.5 / 0.875, 0.25 / 0.875]);
+        assert_eq!(scaled_poles(&[], &[1.0], 0.5), None);
+        assert_eq!(scaled_poles(&[-0.8], &[1.0], 1.0 / 0.55), None);
+        assert_eq!(scaled_poles(&[-1.0], &[1.0], 0.5), None);
     }
 
     /// The falling set starts as the block's own coefficients, so the start simulates as the current model.

@@ -110,6 +110,12 @@ pub fn over_time(
     )
 }
 
+/// The first `len` samples of the held-out part, fewer where the record ends: a stretch short enough for
+/// single moves to show in [`over_time`].
+pub fn held_out_stretch(fig: &Figure, len: usize) -> (usize, usize) {
+    (fig.n_fit, fig.n.min(fig.n_fit + len))
+}
+
 /// The evidence when the fitted model lacks the effect's own extension (it never does for a chosen effect):
 /// output against input.
 pub fn generic(fig: &Figure, id: EffectId) -> Result<String, PlotError> {
@@ -222,6 +228,60 @@ pub fn outside(r: &[f64], band: f64) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::diagnose::fit::model::tests::paper_base;
+
+    /// `f` on the figure of the record `y` whose first `n_fit` samples are the fit part, with the model
+    /// output `output` (the other curves are the record's own).
+    fn on_figure<R>(y: &[f64], n_fit: usize, output: &[f64], f: impl FnOnce(&Figure) -> R) -> R {
+        let t: Vec<f64> = (0..y.len()).map(|k| k as f64).collect();
+        let (declared, model) = (Simulation::default(), EffectModel::plain(paper_base()));
+        f(&Figure {
+            path: Path::new("unused.png"),
+            test: "test",
+            n: y.len(),
+            n_fit,
+            t: &t,
+            u: &t,
+            y,
+            columns: ["t", "u", "y"],
+            declared: &declared,
+            plain_label: "plain",
+            e0: y,
+            e1: y,
+            e1_pred: None,
+            after_label: "after",
+            model: &model,
+            output,
+            lags: 5,
+        })
+    }
+
+    /// The held-out output -50..49 has its top 2% at 47, 48, 49 and its bottom at -50, -49, -48 (the
+    /// quantiles' nearest ranks 97 and 2 of 0..99); a model 10% beyond the measurement is 4.8 above at
+    /// the top and 4.9 below at the bottom. The fit part (20 samples at 100, the model at 1000) is not
+    /// looked at; no held-out part, nothing found.
+    #[test]
+    fn extremes_by_hand() {
+        let mut y = vec![100.0; 20];
+        y.extend((0..100).map(|k| f64::from(k) - 50.0));
+        let mut model = vec![1000.0; 20];
+        model.extend(y[20..].iter().map(|v| 1.1 * v));
+        let (top, bottom) = on_figure(&y, 20, &model, |fig| at_extremes(fig, &model));
+        assert!((top - 4.8).abs() < 1e-12, "{top}");
+        assert!((bottom + 4.9).abs() < 1e-12, "{bottom}");
+        let all_fit = on_figure(&y, 120, &model, |fig| at_extremes(fig, &model));
+        assert_eq!(all_fit, (0.0, 0.0));
+    }
+
+    /// A stretch starts at the held-out part and ends after `len` samples or at the record's end.
+    #[test]
+    fn stretches_start_at_the_held_out_part() {
+        let y = vec![0.0; 120];
+        on_figure(&y, 20, &y, |fig| {
+            assert_eq!(held_out_stretch(fig, 50), (20, 70));
+            assert_eq!(held_out_stretch(fig, 400), (20, 120));
+        });
+    }
 
     /// The figures' curves pair each x with its y, in order, one point per sample (a curve of one point
     /// would draw nothing the reader can check).

@@ -299,6 +299,64 @@ mod unit {
         assert_eq!(EffectId::parse("offset"), None);
     }
 
+    /// Each effect's words (the report's `describe`) name what it adds, each in its own words.
+    #[test]
+    fn descriptions_name_their_element() {
+        let words = [
+            ("gap-drift", "gaps linear in time"),
+            ("curved-borders", "both borders"),
+            ("extra-delay", "longer delay"),
+            ("linear-order", "coefficient in the linear block"),
+            ("coloured-noise", "AR noise model"),
+            ("saturation", "clipped"),
+            ("periodic-disturbance", "sinusoid"),
+            ("quantization", "rounds to a step"),
+            ("friction", "Coulomb"),
+            ("direction-dependent", "while its output falls"),
+            ("dead-zone", "dead zone"),
+        ];
+        assert_eq!(words.len(), CATALOGUE.len());
+        for (name, said) in words {
+            let d = EffectId::parse(name).unwrap().describe();
+            assert!(d.contains(said), "{name}: {d}");
+        }
+    }
+
+    /// Each residual test points to the effects the catalogue's table lists for it, in the catalogue's
+    /// order; a name that is no test points nowhere.
+    #[test]
+    fn tests_point_to_the_effects_of_the_table() {
+        use crate::diagnose::residual::test_names::{
+            CLIPPING, CROSS_CORRELATION, DRIFT, LATTICE, LJUNG_BOX, SPECTRUM_PEAK,
+        };
+        let pointed = |test: &str| -> Vec<&str> {
+            EffectId::pointed_by(test)
+                .into_iter()
+                .map(EffectId::as_str)
+                .collect()
+        };
+        assert_eq!(pointed(LATTICE), ["quantization"]);
+        assert_eq!(pointed(SPECTRUM_PEAK), ["periodic-disturbance"]);
+        assert_eq!(pointed(CLIPPING), ["saturation"]);
+        assert_eq!(pointed(DRIFT), ["gap-drift", "friction"]);
+        assert_eq!(
+            pointed(CROSS_CORRELATION),
+            ["extra-delay", "linear-order", "dead-zone"]
+        );
+        assert_eq!(
+            pointed(LJUNG_BOX),
+            [
+                "linear-order",
+                "coloured-noise",
+                "periodic-disturbance",
+                "friction",
+                "direction-dependent",
+                "dead-zone"
+            ]
+        );
+        assert!(pointed("offset").is_empty());
+    }
+
     /// The ids order as the catalogue lists them, and each is listed once.
     #[test]
     fn ids_order_as_the_catalogue_and_are_unique() {

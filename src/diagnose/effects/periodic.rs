@@ -204,6 +204,26 @@ mod tests {
         assert_eq!(solve_symmetric_2x2([0.0, 0.0, 5.0], [1.0, 1.0]), (0.0, 0.0));
     }
 
+    /// A residual spectrum peak at a frequency the input carries is set aside (model error driven by the
+    /// input); at a frequency it does not carry, or when the spectrum-peak test did not reject, it is not.
+    #[test]
+    fn a_peak_the_input_carries_is_set_aside() {
+        let u: Vec<f64> = (0..400)
+            .map(f64::from)
+            .map(|k| (0.5 * k).sin() + 0.2 * (1.7 * k.powf(1.3)).sin())
+            .collect();
+        let screen = |omega, rejected| Screening {
+            u: &u,
+            omega,
+            rejected,
+        };
+        let peak: &[&str] = &[SPECTRUM_PEAK, LJUNG_BOX];
+        let why = Periodic.set_aside(&screen(0.5, peak)).expect("set aside");
+        assert!(why.contains("a frequency the input carries"), "{why}");
+        assert_eq!(Periodic.set_aside(&screen(2.0, peak)), None);
+        assert_eq!(Periodic.set_aside(&screen(0.5, &[LJUNG_BOX])), None);
+    }
+
     /// The residual 0.7 sin(0.4 k) - 0.3 cos(0.4 k) + 0.05 sin(2.3 k), k < 60: its least-squares sinusoid
     /// at 0.4 rad/sample by NumPy (`lstsq` on [sin, cos]).
     #[test]

@@ -2,7 +2,7 @@
 //! expected reading for Gaussian noise of std sigma (at most 2 q) before the rounding. q and the offset
 //! come from the value lattice, sigma is fitted.
 
-use crate::diagnose::effects::figure::{Figure, fmt, over_time};
+use crate::diagnose::effects::figure::{Figure, fmt, held_out_stretch, over_time};
 use crate::diagnose::effects::rig::{Draw, Rig};
 use crate::diagnose::effects::{Effect, EffectId, Fitted, Parameters, Plan, StartContext};
 use crate::diagnose::fit::model::{BaseModel, EffectModel, Element, Elements, Extension, Scales};
@@ -105,12 +105,10 @@ impl Effect for Quantization {
         let Some(ext) = fig.model.extension(ID) else {
             return super::figure::generic(fig, ID);
         };
-        let k0 = fig.n_fit;
-        let k1 = (k0 + 150).min(fig.n);
         over_time(
             fig,
             "Evidence for quantization: a stretch of the held-out part",
-            (k0, k1),
+            held_out_stretch(fig, 150),
             true,
         )?;
         Ok(format!(
@@ -138,6 +136,28 @@ impl Effect for Quantization {
 mod tests {
     use super::*;
     use crate::diagnose::fit::starts::tests::{context, paper};
+
+    /// The reported offset is where the record's values sit on the lattice, within half a step of 0: the
+    /// fitted offset 1.25 plus the output level 0.125 the fit worked about is 1.375, 2.75 steps of 0.5, so
+    /// -0.125. The step and the noise level as fitted; a model without a quantizer reports nothing.
+    #[test]
+    fn parameters_place_the_offset_within_half_a_step() {
+        let plain = paper();
+        let m = plain.with(extension(0.5, 1.25, 0.0625));
+        let fitted = |model| Fitted {
+            model,
+            current: &plain,
+            n: 100,
+            ts: None,
+            output_level: 0.125,
+        };
+        let p = Quantization.parameters(&fitted(&m));
+        assert_eq!(
+            serde_json::to_string(&p).unwrap(),
+            r#"{"step":0.5,"offset":-0.125,"noise_before_rounding":0.0625}"#
+        );
+        assert_eq!(Quantization.parameters(&fitted(&plain)), Parameters::new());
+    }
 
     /// Values 0.03 + 0.1 n all sit at phase 0.3 of the step 0.1: the offset is 0.03. The residual's rms
     /// (0.02) is the first noise level, then 0.3 of it and 0.05 of the step; with a residual larger than

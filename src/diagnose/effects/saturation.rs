@@ -175,6 +175,30 @@ mod tests {
     use super::*;
     use crate::diagnose::fit::starts::tests::{context, paper};
 
+    /// The limits fitted, in the output's units (the fit's output level added back), and which they are; a
+    /// limit not fitted is left out, not reported at the float's end.
+    #[test]
+    fn parameters_report_the_fitted_limits_only() {
+        let plain = paper();
+        let report = |ext: Extension| {
+            let m = plain.with(ext);
+            let p = Saturation.parameters(&Fitted {
+                model: &m,
+                current: &plain,
+                n: 100,
+                ts: None,
+                output_level: 0.5,
+            });
+            serde_json::to_string(&p).unwrap()
+        };
+        assert_eq!(
+            report(extension(-1.0, 2.0)),
+            r#"{"lo":-0.5,"hi":2.5,"limits":"both"}"#
+        );
+        assert_eq!(report(upper(2.0)), r#"{"hi":2.5,"limits":"upper"}"#);
+        assert_eq!(report(lower(-1.0)), r#"{"lo":-0.5,"limits":"lower"}"#);
+    }
+
     /// The saturation starts: the clipping test's levels, then the 2/98% and the 10/90% quantiles of y
     /// (y = 0..=100: the values 2, 98, 10, 90).
     #[test]

@@ -250,3 +250,34 @@ fn every_element_has_a_magnitude_per_parameter() {
         assert_eq!(e.unpack(&e.pack(1.0), 1.0), e, "{e:?}");
     }
 }
+
+/// The zero-gap model (the play-free alternative the verdict on play fits): m2 = m1, the gaps about their
+/// middle with c2 = -c1, the curved borders' lower terms held at the upper's (one curve), the gaps' drift
+/// rates opposite (the curve's level drifts, the gap stays zero), and the noise model left out.
+#[test]
+fn the_zero_gap_model_ties_each_element() {
+    let m = EffectModel::plain(paper_base())
+        .with(gap_drift::extension(1e-3, 5e-4))
+        .with(curved_borders::extension([0.1, -0.02], [0.05, 0.01]))
+        .with(coloured_noise::extension(vec![0.5]));
+    let (moved, pins) = m.zero_gap(1.0);
+    let expected = EffectModel::plain(BaseModel {
+        m2: 1.0,
+        c1: -0.25,
+        c2: 0.25,
+        ..paper_base()
+    })
+    .with(gap_drift::extension(1e-3, -1e-3))
+    .with(curved_borders::extension([0.1, -0.02], [0.1, -0.02]));
+    assert_eq!(moved, expected);
+    // The pins hold it there: any free values expand to a model with the same ties.
+    let th = moved.pack(1.0);
+    assert_eq!(pins.0.len(), th.len());
+    let mut free = pins.reduce(&th);
+    free.iter_mut().for_each(|v| *v += 0.125);
+    let other = moved.unpack(&pins.expand(&free), 1.0);
+    let (drift, curved) = (&other.exts[0].theta, &other.exts[1].theta);
+    assert_eq!(drift[1], -drift[0]);
+    assert_eq!(curved[2..], curved[..2]);
+    assert_eq!((other.base.m2, other.base.c2), (1.0, -other.base.c1));
+}

@@ -185,6 +185,26 @@ fn rho_and_mu_schedule() {
     }
 }
 
+/// rho(k) = (k + 1)^-rho_exp for every exponent: the common ones computed without `powf` (1, 0.5, 0.25,
+/// 0.75) and any other through it.
+#[test]
+fn rho_for_every_exponent() {
+    for rho_exp in [1.0, 0.5, 0.25, 0.75, 0.6, 0.9] {
+        let cfg = MrgiaConfig {
+            rho_exp,
+            ..MrgiaConfig::paper(2, 0, 1)
+        };
+        for k in [0u64, 1, 7, 999] {
+            let want = ((k + 1) as f64).powf(-rho_exp);
+            let got = cfg.rho(k);
+            assert!(
+                (got - want).abs() < 1e-15,
+                "rho_exp {rho_exp}, k {k}: {got}"
+            );
+        }
+    }
+}
+
 #[test]
 fn batch_identify_equals_stepping_and_checks_lengths() {
     let (u, y) = paper_clean(500, 3);
@@ -301,6 +321,21 @@ fn covariance_update_matches_the_appendix() {
             "(18)/(47)"
         );
         assert_eq!(rls.p, rls.p.transpose());
+    }
+}
+
+/// The noise estimate's floor is relative to the output's size, SIGMA_REL_FLOOR max|y|^2: a zero error on a
+/// zero estimate lands on 1e-6 at max|y| = 1000 and on 1e-12 at max|y| = 1, on the smallest normal float
+/// for an output that never left zero.
+#[test]
+fn sigma_floor_scales_with_the_output() {
+    let cfg = MrgiaConfig::paper(0, 0, 1);
+    let h = SVector::<f64, 4>::new(1.0, 0.0, 0.0, 0.0);
+    for (y_max, floor) in [(1e3, 1e-6), (1.0, 1e-12), (0.0, f64::MIN_POSITIVE)] {
+        let mut rls = Rls::<4>::new(&[1.0, 0.0, 0.01, 0.01], 1.0);
+        let mut sigma = 0.0;
+        assert!(update(&cfg, &mut rls, &h, 0.0, 5, y_max, &mut sigma));
+        assert!((sigma - floor).abs() <= 1e-12 * floor, "{y_max}: {sigma}");
     }
 }
 

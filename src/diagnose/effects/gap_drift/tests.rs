@@ -55,3 +55,36 @@ fn starts_at_the_current_model_and_packs_a_total_drift() {
     let back = e.unpack(&[0.1, -0.2], 1000.0);
     assert!((back.theta[0] - 1e-4).abs() < 1e-18 && (back.theta[1] + 2e-4).abs() < 1e-18);
 }
+
+/// The fitted drift as reported: the rates, the gaps at the first and at the last sample (c + rate (n - 1)),
+/// and the rates per second when the sample period is known. Rates of 2^-10 and -2^-12 per sample over
+/// 1025 samples at 0.5 s move c1 = 0.5 to 1.5 and c2 = 1 to 0.75.
+#[test]
+fn parameters_report_the_gaps_at_both_ends() {
+    let plain = paper();
+    let m = plain.with(extension(2f64.powi(-10), -(2f64.powi(-12))));
+    let fitted = |ts| Fitted {
+        model: &m,
+        current: &plain,
+        n: 1025,
+        ts,
+        output_level: 0.0,
+    };
+    let p = GapDrift.parameters(&fitted(Some(0.5)));
+    let got = |name: &str| p.get(name).and_then(serde_json::Value::as_f64);
+    assert_eq!(got("c1_rate"), Some(2f64.powi(-10)));
+    assert_eq!(got("c2_rate"), Some(-(2f64.powi(-12))));
+    assert_eq!((got("c1_start"), got("c2_start")), (Some(0.5), Some(1.0)));
+    assert_eq!((got("c1_end"), got("c2_end")), (Some(1.5), Some(0.75)));
+    assert_eq!(got("c1_rate_per_s"), Some(2f64.powi(-9)));
+    assert_eq!(got("c2_rate_per_s"), Some(-(2f64.powi(-11))));
+    let per_sample = GapDrift.parameters(&fitted(None));
+    assert_eq!(per_sample.get("c1_rate_per_s"), None);
+    assert_eq!(
+        GapDrift.parameters(&Fitted {
+            model: &plain,
+            ..fitted(None)
+        }),
+        Parameters::new()
+    );
+}
