@@ -14,10 +14,25 @@ use backlash::plant::{
     ArxParams, BacklashParams, ContinuousLinear, Plant, PlantParams, PolyBacklash,
     PolyBacklashParams, TransferFunction,
 };
-use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{BatchSize, Bencher, Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 
 const N: usize = 10_000;
+
+/// Paper 000's plant stepped through the inputs `u` from a fresh start (a group's own measure, or the
+/// baseline another group's ratios divide by).
+fn plant_steps(b: &mut Bencher, u: &[f64]) {
+    b.iter_batched(
+        || Plant::new(PlantParams::PAPER).unwrap(),
+        |mut p| {
+            for &uk in u {
+                p.advance(black_box(uk));
+            }
+            p.output().y
+        },
+        BatchSize::SmallInput,
+    )
+}
 
 fn plant_and_backlash(c: &mut Criterion) {
     let u = paper_input(N, 1);
@@ -47,18 +62,7 @@ fn plant_and_backlash(c: &mut Criterion) {
             BatchSize::SmallInput,
         )
     });
-    g.bench_function("plant step (paper 000)", |b| {
-        b.iter_batched(
-            || Plant::new(PlantParams::PAPER).unwrap(),
-            |mut p| {
-                for &uk in &u {
-                    p.advance(black_box(uk));
-                }
-                p.output().y
-            },
-            BatchSize::SmallInput,
-        )
-    });
+    g.bench_function("plant step (paper 000)", |b| plant_steps(b, &u));
     g.bench_function("continuous block step (order 2)", |b| {
         b.iter_batched(
             || ContinuousLinear::new(TransferFunction::example(), 0.1).unwrap(),
@@ -187,18 +191,7 @@ fn compensate(c: &mut Criterion) {
     let run = simulate(&r, &plant, Wear::None, Mode::Adaptive, &s).unwrap();
     let mut g = c.benchmark_group("compensate");
     g.throughput(Throughput::Elements(N as u64));
-    g.bench_function("plant step (paper 000), baseline", |b| {
-        b.iter_batched(
-            || Plant::new(PlantParams::PAPER).unwrap(),
-            |mut p| {
-                for &uk in &r {
-                    p.advance(black_box(uk));
-                }
-                p.output().y
-            },
-            BatchSize::SmallInput,
-        )
-    });
+    g.bench_function("plant step (paper 000), baseline", |b| plant_steps(b, &r));
     g.bench_function("backlash inverse commit", |b| {
         b.iter_batched(
             || BacklashInverse::new(0.0).unwrap(),

@@ -196,13 +196,7 @@ mod tests {
     fn parameters_are_the_fitted_ar_model() {
         let plain = paper();
         let m = plain.with(extension(vec![0.5, -0.25]));
-        let fitted = |model| Fitted {
-            model,
-            current: &plain,
-            n: 100,
-            ts: None,
-            output_level: 0.0,
-        };
+        let fitted = |model| Fitted::on(model, &plain);
         let p = ColouredNoise.parameters(&fitted(&m));
         assert_eq!(
             serde_json::to_string(&p).unwrap(),

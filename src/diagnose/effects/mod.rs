@@ -140,6 +140,24 @@ pub struct Fitted<'a> {
     pub output_level: f64,
 }
 
+#[cfg(test)]
+impl<'a> Fitted<'a> {
+    /// `model` fitted on top of `current` over 100 samples of unknown period, about the output level 0
+    /// (tests set the rest by struct update).
+    pub fn on(
+        model: &'a crate::diagnose::fit::model::EffectModel,
+        current: &'a crate::diagnose::fit::model::EffectModel,
+    ) -> Self {
+        Self {
+            model,
+            current,
+            n: 100,
+            ts: None,
+            output_level: 0.0,
+        }
+    }
+}
+
 impl Fitted<'_> {
     /// The fitted model's extension of `id` (an effect reads its own).
     pub fn extension(&self, id: EffectId) -> Option<&Extension> {

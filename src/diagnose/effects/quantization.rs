@@ -145,11 +145,8 @@ mod tests {
         let plain = paper();
         let m = plain.with(extension(0.5, 1.25, 0.0625));
         let fitted = |model| Fitted {
-            model,
-            current: &plain,
-            n: 100,
-            ts: None,
             output_level: 0.125,
+            ..Fitted::on(model, &plain)
         };
         let p = Quantization.parameters(&fitted(&m));
         assert_eq!(

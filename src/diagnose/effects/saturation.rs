@@ -183,11 +183,8 @@ mod tests {
         let report = |ext: Extension| {
             let m = plain.with(ext);
             let p = Saturation.parameters(&Fitted {
-                model: &m,
-                current: &plain,
-                n: 100,
-                ts: None,
                 output_level: 0.5,
+                ..Fitted::on(&m, &plain)
             });
             serde_json::to_string(&p).unwrap()
         };

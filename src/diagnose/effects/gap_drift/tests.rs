@@ -64,11 +64,9 @@ fn parameters_report_the_gaps_at_both_ends() {
     let plain = paper();
     let m = plain.with(extension(2f64.powi(-10), -(2f64.powi(-12))));
     let fitted = |ts| Fitted {
-        model: &m,
-        current: &plain,
         n: 1025,
         ts,
-        output_level: 0.0,
+        ..Fitted::on(&m, &plain)
     };
     let p = GapDrift.parameters(&fitted(Some(0.5)));
     let got = |name: &str| p.get(name).and_then(serde_json::Value::as_f64);
