@@ -10,7 +10,7 @@ use crate::diagnose::effects::{CATALOGUE, Effect};
 use crate::diagnose::fit::model::{EffectModel, Objective, Simulation};
 use crate::diagnose::fit::problem::Problem;
 use crate::diagnose::fit::starts::StartContext;
-use crate::diagnose::residual::statistics::diebold_mariano;
+use crate::diagnose::residual::{self, statistics::diebold_mariano};
 use crate::stats::rms;
 use serde::Serialize;
 
@@ -103,11 +103,8 @@ pub(super) fn imitators(
         .map(|(a, b)| a - b)
         .collect();
     let y_fit = &p.y[..p.n_fit];
-    let clip = y_fit
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-            (lo.min(*v), hi.max(*v))
-        });
+    // The clipping levels the diagnosis's rounds start saturation from: the fit part's extremes.
+    let (lo, hi, _) = residual::clipping(y_fit);
     let no_mrgia = |_: usize, _: usize, _: usize| None;
     let cx = StartContext {
         current,
@@ -117,7 +114,7 @@ pub(super) fn imitators(
         y_scale: p.y_scale,
         omega: 0.0,
         lattice: None,
-        clip,
+        clip: (lo, hi),
         mrgia: &no_mrgia,
     };
     let effects: Vec<&'static dyn Effect> = CATALOGUE

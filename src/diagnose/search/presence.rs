@@ -17,7 +17,7 @@
 //!   periodic test of a few periods, with every gain at [`FEW_REVERSALS_Z`]); with a friction element, the
 //!   record determines every parameter (else friction and gap read alike); the fit part's halves agree.
 //! - **Absent** needs: no gain from the gap, the play not significantly above zero, a model with the gap
-//!   no worse than its zero-gap twin on the held-out part, no friction element (itself a play), a bound (the largest
+//!   not clearly worse than its zero-gap twin on the held-out part, no friction element (itself a play), a bound (the largest
 //!   play the record does not rule out at 95%, checked on the play's profile) narrower than
 //!   [`MAX_BOUND_SHARE`] of the travel, and at least [`MIN_ABSENT_REVERSALS`] reversals crossing it.
 //! - Anything else is **undetermined**, and so is every impossible estimate (a negative gap, a play wider
