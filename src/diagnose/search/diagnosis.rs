@@ -78,7 +78,11 @@ pub enum DiagnoseError {
     TooShort { n: usize, min: usize },
     #[error("invalid model structure: {0}")]
     Structure(String),
-    #[error("the fit fraction {0} must be between 0.3 and 0.95")]
+    #[error(
+        "the fit fraction {0} must be between {lo} and {hi}",
+        lo = FIT_FRACTIONS.start(),
+        hi = FIT_FRACTIONS.end()
+    )]
     Fraction(f64),
     #[error("the declared model could not be fitted: no start point gives a valid simulation")]
     NoFit,
@@ -249,11 +253,15 @@ pub struct Explained {
     pub best_heldout_excitation: f64,
 }
 
-/// The fit fractions [`best_split`] tries: 0.30 to 0.95 by 0.05 (those `--fit-fraction` accepts).
-const SPLITS: std::ops::RangeInclusive<u32> = 6..=19;
+/// The fit fractions a diagnosis accepts (`--fit-fraction`).
+pub const FIT_FRACTIONS: std::ops::RangeInclusive<f64> = 0.3..=0.95;
 
-/// The input's excitation on the held-out part over the fit part's at the split `n_fit`: the smaller of the
-/// ratios of standard deviation and of range (`NaN` where the fit part's input is constant).
+/// The steps between the fit fractions [`best_split`] tries (every one of [`FIT_FRACTIONS`] that is a
+/// multiple of 1/20).
+const SPLIT_STEPS: f64 = 20.0;
+
+/// The input's excitation on the held-out part over the fit part's at the split `n_fit`: the ratios of
+/// standard deviation and of range (`NaN` where the fit part's input is constant).
 fn excitation(u: &[f64], n_fit: usize) -> (f64, f64) {
     let range = |v: &[f64]| {
         v.iter().fold(f64::NEG_INFINITY, |m, a| m.max(*a))
@@ -267,13 +275,14 @@ fn excitation(u: &[f64], n_fit: usize) -> (f64, f64) {
     )
 }
 
-/// The fit fraction (0.30 to 0.95 by 0.05) whose two parts' inputs are excited most alike, and how alike:
+/// The fit fraction (of [`FIT_FRACTIONS`], by 0.05) whose two parts' inputs are excited most alike, and how alike:
 /// the smallest of the two ratios (held-out input over fit input: standard deviation, range) and their
 /// inverses (1: alike; a quiet held-out part judges the models on little, a quiet fit part asks them to
 /// extrapolate). Where the record's excitation sits in one short stretch no split is fair.
 pub fn best_split(u: &[f64]) -> (f64, f64) {
-    SPLITS
-        .map(|k| f64::from(k) / 20.0)
+    let steps = |f: f64| (f * SPLIT_STEPS).round() as u32;
+    (steps(*FIT_FRACTIONS.start())..=steps(*FIT_FRACTIONS.end()))
+        .map(|k| f64::from(k) / SPLIT_STEPS)
         .filter_map(|f| {
             let n_fit = crate::diagnose::fit::structure::fit_len(u.len(), f);
             let (s, r) = excitation(u, n_fit);
@@ -353,15 +362,16 @@ impl Explained {
     /// What to do about a poorly excited held-out part: the split that excites it, or that none does.
     fn fairer_split(&self) -> String {
         let (f, e) = (self.best_fit_fraction, self.best_heldout_excitation);
+        let (lo, hi) = (FIT_FRACTIONS.start(), FIT_FRACTIONS.end());
         if e >= POOR_EXCITATION {
             format!(
                 "--fit-fraction {f:.2} excites the two parts most alike (each part's input has at least {:.0}% of \
-                 the other's standard deviation and range; the best split from 0.30 to 0.95)",
+                 the other's standard deviation and range; the best split from {lo:.2} to {hi:.2})",
                 100.0 * e
             )
         } else {
             format!(
-                "no split from --fit-fraction 0.30 to 0.95 gives each part's input a quarter of the other's \
+                "no split from --fit-fraction {lo:.2} to {hi:.2} gives each part's input a quarter of the other's \
                  standard deviation and range (the best, {f:.2}, gives {:.0}%): no held-out test on this record \
                  is fair; record more excitation, spread over the record",
                 100.0 * e

@@ -323,7 +323,7 @@ fn check_record(u: &[f64], y: &[f64], cfg: &DiagnoseConfig) -> Result<(), Diagno
             cfg.max_delay
         )));
     }
-    if !(0.3..=0.95).contains(&cfg.fit_fraction) {
+    if !FIT_FRACTIONS.contains(&cfg.fit_fraction) {
         return Err(DiagnoseError::Fraction(cfg.fit_fraction));
     }
     if cfg.time_budget.is_zero() {
