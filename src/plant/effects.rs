@@ -455,17 +455,24 @@ pub fn expected_reading(q: &Quantization, v: f64, sigma: f64) -> f64 {
     if s >= 2.0 || !s.is_finite() {
         return v;
     }
-    // round(X) = m_lo + #{m in (m_lo, m_hi] : X > m - 1/2} when X is in (m_lo - 1/2, m_hi + 1/2), which
-    // holds to 1e-15 for a window of 8.5 standard deviations on either side.
-    let m_lo = (z - 8.5 * s).round();
-    let m_hi = (z + 8.5 * s).round();
-    let mut e = m_lo;
-    let mut m = m_lo + 1.0;
-    while m <= m_hi {
-        // P(z + s N > m - 1/2) = erfc((m - 1/2 - z) / (s sqrt 2)) / 2.
-        e += 0.5 * statrs::function::erf::erfc((m - 0.5 - z) / (s * std::f64::consts::SQRT_2));
-        m += 1.0;
+    // More than 2^52 steps from the offset, neighbouring lattice points are not distinct floats (the step is
+    // below the value's resolution): the reading is the value. (There `m + 1 == m`, and a loop stepping m by
+    // one never ended: a fit whose step shrank towards zero hung.)
+    if z.abs() >= 2f64.powi(f64::MANTISSA_DIGITS as i32 - 1) {
+        return v;
     }
+    // round(X) = m_lo + #{m in (m_lo, m_hi] : X > m - 1/2} when X is in (m_lo - 1/2, m_hi + 1/2), which
+    // holds to 1e-15 for a window of 8.5 standard deviations on either side (at most 35 terms for s < 2).
+    let m_lo = (z - 8.5 * s).round();
+    let terms = ((z + 8.5 * s).round() - m_lo) as usize;
+    let e = m_lo
+        + (1..=terms)
+            .map(|i| {
+                // P(z + s N > m - 1/2) = erfc((m - 1/2 - z) / (s sqrt 2)) / 2.
+                let m = m_lo + i as f64;
+                0.5 * statrs::function::erf::erfc((m - 0.5 - z) / (s * std::f64::consts::SQRT_2))
+            })
+            .sum::<f64>();
     q.offset + q.step * e
 }
 
@@ -751,6 +758,12 @@ mod tests {
         assert_eq!(expected_reading(&q, 0.3, 0.5), 0.3);
         assert_eq!(expected_reading(&q, 0.3, 1e300), 0.3);
         assert_eq!(expected_reading(&q, 0.3, f64::INFINITY), 0.3);
+        // A step below the value's resolution (2^60 steps from the offset) reads the value, at once.
+        let fine = Quantization {
+            step: 2f64.powi(-60),
+            offset: 0.0,
+        };
+        assert_eq!(expected_reading(&fine, 1.0, 2f64.powi(-61)), 1.0);
         let mut r = ChaCha8Rng::seed_from_u64(5);
         let m: f64 = (0..200_000)
             .map(|_| {
