@@ -127,6 +127,7 @@ mod tests {
     use super::*;
     use crate::diagnose::effects::{curved_borders, friction, gap_drift, quantization, saturation};
     use crate::diagnose::search::engine::{DiagnoseConfig, Diagnosis, diagnose};
+    use crate::diagnose::search::presence::Presence;
     use std::time::Instant;
 
     /// One bench check per effect (`check_effect`: named in at least 9 of 10 held-out test-bench records,
@@ -323,6 +324,9 @@ mod tests {
             // standard error counted that, seeds 20002 and 20008 were 5.3 and 8 of them off. A false-positive
             // effect, such as a drift of the gaps, moves the play it reports.)
             assert!(d.backlash.supported, "{}: {:?}", seed, d.backlash.reasons);
+            // ... and at the neighbouring splits of the record (fit fractions 0.6 and 0.8).
+            let splits: Vec<_> = d.backlash.splits.iter().map(|s| s.presence).collect();
+            assert_eq!(splits, [Presence::Present; 3], "{seed}");
             let se = d.backlash.play_se.expect("the gaps are determined");
             assert!(
                 d.effect_id().is_some() || (d.backlash.play - 1.5).abs() < 3.0 * se,

@@ -100,6 +100,16 @@ impl<'a> Problem<'a> {
         }
     }
 
+    /// The same record split elsewhere (fit part `0..n_fit`), its scales kept: a model fitted on `self`
+    /// means the same on it (a drift's rate is per the same time scale), so it can be refitted from there.
+    pub fn resplit(&self, n_fit: usize) -> Self {
+        Self {
+            n_fit,
+            n_explore: n_fit.min(EXPLORE_SAMPLES),
+            ..self.clone()
+        }
+    }
+
     /// The settings of the refinement on the whole fit part: when exploration ran on a shorter window, the
     /// start is already near the optimum and at most [`POLISH_ITER`] iterations refine it (each costs a few
     /// simulations of the whole fit part).

@@ -86,9 +86,9 @@ use crate::diagnose::fit::structure::{
 };
 use crate::diagnose::search::decision;
 pub use crate::diagnose::search::diagnosis::*;
-use crate::diagnose::search::presence;
 pub use crate::diagnose::search::round::usable_lags;
 use crate::diagnose::search::round::{Current, find};
+use crate::diagnose::search::{presence, stability};
 use crate::plant::{MAX_DELAY, MAX_ORDER};
 use crate::stats::{below_by, rms, rms_diff, std_dev};
 
@@ -122,7 +122,8 @@ pub fn diagnose_with_progress(
         fit_plain(&problem, s, cfg.restarts, cfg.seed, &linear).ok_or(DiagnoseError::NoFit)?;
     let mut d = rounds_from(&mut problem, cfg, base, &linear, choice, &initial)?;
     extend(&problem, cfg, &mut d);
-    d.backlash = presence::assess(&problem, d.final_model());
+    let first = presence::assess(&problem, d.final_model(), presence::Halves::Refit);
+    d.backlash = stability::over_splits(&problem, d.final_model(), cfg.fit_fraction, first);
     let explained = {
         let last = d.steps().last().map_or(&d.base_sim.y, |c| &c.output);
         Explained::of(u, y, last, d.n_fit)

@@ -8,3 +8,4 @@ pub mod diagnosis;
 pub mod engine;
 pub mod presence;
 pub mod round;
+pub mod stability;

@@ -90,6 +90,28 @@ pub enum Presence {
     Undetermined,
 }
 
+impl Presence {
+    /// The answer's word, as the JSON writes it.
+    pub fn word(self) -> &'static str {
+        match self {
+            Self::Present => "present",
+            Self::Absent => "absent",
+            Self::Undetermined => "undetermined",
+        }
+    }
+}
+
+/// The verdict at one split of the record.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SplitVerdict {
+    pub fit_fraction: f64,
+    pub presence: Presence,
+    /// The play there (`NaN` where the final model could not be refitted on that fit part).
+    pub play: f64,
+    /// For `undetermined`: what kept it from `present` and from `absent` there.
+    pub undecided_by: Vec<String>,
+}
+
 /// The verdict on play with its evidence (the JSON's `backlash`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BacklashSupport {
@@ -123,6 +145,9 @@ pub struct BacklashSupport {
     pub travel: f64,
     /// The plays of the two halves of the fit part, when they were compared.
     pub halves: Option<[f64; 2]>,
+    /// The verdict at the chosen split and its neighbours, for `present` or `absent` before the check
+    /// (judged again there: `diagnose::search::stability`); empty where it was not checked.
+    pub splits: Vec<SplitVerdict>,
     /// For `undetermined`: what kept it from `present` and from `absent`, in short phrases.
     pub undecided_by: Vec<String>,
     /// For `undetermined`: the experiment that would decide.
@@ -145,8 +170,17 @@ struct Reading {
     travel: f64,
 }
 
+/// Whether a verdict refits the halves of the fit part: at the chosen split, yes; at another split
+/// (`diagnose::search::stability`), which asks whether the held-out evidence moves with the split, the halves of
+/// a fit part that overlaps the chosen one by most of its length would be the same test again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Halves {
+    Refit,
+    Skip,
+}
+
 /// The verdict on play for the final model `last` of a diagnosis on problem `p`.
-pub(crate) fn assess(p: &Problem, last: &EffectModel) -> BacklashSupport {
+pub(crate) fn assess(p: &Problem, last: &EffectModel, halves: Halves) -> BacklashSupport {
     (p.progress)("judging the play: the same model without a gap, and its play-free alternatives");
     let Some(first) = read(p, last, FINAL_MODEL) else {
         return unreadable();
@@ -163,6 +197,7 @@ pub(crate) fn assess(p: &Problem, last: &EffectModel) -> BacklashSupport {
         r: &r,
         play_free: &play_free,
         reversals,
+        halves,
     };
     let mut out = cx.decide(impossible, &mut reasons);
     out.reasons = reasons;
@@ -312,6 +347,7 @@ impl BacklashSupport {
             reversals: [0, 0],
             travel: 0.0,
             halves: None,
+            splits: Vec::new(),
             undecided_by: vec![why.into()],
             experiment: None,
             verdict: why.into(),
@@ -427,6 +463,7 @@ struct Context<'a, 'p> {
     r: &'a Reading,
     play_free: &'a [PlayFree],
     reversals: [usize; 2],
+    halves: Halves,
 }
 
 impl Context<'_, '_> {
@@ -442,8 +479,10 @@ impl Context<'_, '_> {
         let identified = self.identified(reasons);
         let mut halves = None;
         let present = !impossible && significant && gains && crossed && identified && {
-            halves = self.halves();
-            self.halves_agree(halves, reasons)
+            self.halves == Halves::Skip || {
+                halves = self.halves();
+                self.halves_agree(halves, reasons)
+            }
         };
         if present {
             return self.answer(Presence::Present, None, halves);
@@ -801,6 +840,7 @@ impl Context<'_, '_> {
             reversals: self.reversals,
             travel: r.travel,
             halves: halves.map(|[a, b]| [a.0, b.0]),
+            splits: Vec::new(),
             undecided_by: Vec::new(),
             verdict: self.sentence(presence, bound, play_input_units),
             experiment,

@@ -1,0 +1,233 @@
+//! The verdict on play judged again at other splits of the record. A claim (`present` or
+//! `absent`) that a user can move by choosing another fit fraction is not a claim the record makes: the
+//! final model is refitted from where it ended on the fit parts of the splits [`SPLIT_STEP`] before and after the chosen one, judged
+//! there by the same rules, and where any of those verdicts contradicts it (`present` needs
+//! `present` at every split, `absent` no `present` at any) the answer is `undetermined`, with every split's
+//! verdict in the reasons. An `undetermined` answer claims nothing and is not re-judged.
+//! The halves of the fit part are refitted at the chosen split only: the other splits ask whether the
+//! held-out evidence moves with the split, and their fit parts overlap the chosen one by most of its length.
+
+use rayon::prelude::*;
+
+use super::diagnosis::FIT_FRACTIONS;
+use super::presence::{self, BacklashSupport, Halves, Presence, SplitVerdict};
+use crate::diagnose::fit::model::{EffectModel, Objective};
+use crate::diagnose::fit::problem::Problem;
+use crate::diagnose::fit::structure::fit_len;
+use crate::report::number as g;
+
+/// How far the other splits judged lie from the chosen one, as a fraction of the record.
+pub const SPLIT_STEP: f64 = 0.1;
+
+/// The fit fractions [`SPLIT_STEP`] before and after `fraction` that lie in [`FIT_FRACTIONS`]: the splits
+/// next to the one the user chose (the default 0.7 is judged at 0.6 and 0.8; a user who moved the split to
+/// where the input excites both parts alike is judged near there, not where the held-out part is quiet).
+pub fn neighbours(fraction: f64) -> Vec<f64> {
+    [fraction - SPLIT_STEP, fraction + SPLIT_STEP]
+        .into_iter()
+        // Rounded to the hundredth, so that 0.7 - 0.1 is 0.6 and not 0.6000000000000001 in the answer.
+        .map(|f| (f * 100.0).round() / 100.0)
+        .filter(|f| FIT_FRACTIONS.contains(f))
+        .collect()
+}
+
+/// `first`, the verdict on `p`'s split (the fit fraction `fraction`) for the final model `last`, checked
+/// at the neighbouring splits ([`neighbours`]): unchanged where they agree, `undetermined` where any differs.
+pub(crate) fn over_splits(
+    p: &Problem,
+    last: &EffectModel,
+    fraction: f64,
+    first: BacklashSupport,
+) -> BacklashSupport {
+    if first.presence == Presence::Undetermined {
+        return first;
+    }
+    let others: Vec<SplitVerdict> = neighbours(fraction)
+        .par_iter()
+        .map(|&f| at_split(p, last, f))
+        .collect();
+    let own = SplitVerdict {
+        fit_fraction: fraction,
+        presence: first.presence,
+        play: first.play,
+        undecided_by: Vec::new(),
+    };
+    let mut splits = vec![own];
+    splits.extend(others);
+    splits.sort_by(|a, b| a.fit_fraction.total_cmp(&b.fit_fraction));
+    judged(first, splits)
+}
+
+/// The verdict at the fit fraction `f`: the final model refitted from where it ended on that split's fit
+/// part (its parameters keep their meaning: the time scale of drifts is the original split's), judged.
+fn at_split(p: &Problem, last: &EffectModel, f: f64) -> SplitVerdict {
+    (p.progress)(&format!("judging the play again at fit fraction {f:.2}"));
+    let q = p.resplit(fit_len(p.u.len(), f));
+    let start = last.deterministic();
+    let refit = q.fit(&start, std::slice::from_ref(&start), Objective::Simulation);
+    let Some((m, _)) = refit else {
+        return SplitVerdict {
+            fit_fraction: f,
+            presence: Presence::Undetermined,
+            play: f64::NAN,
+            undecided_by: vec!["the final model could not be refitted on this fit part".into()],
+        };
+    };
+    let s = presence::assess(&q, &m, Halves::Skip);
+    SplitVerdict {
+        fit_fraction: f,
+        presence: s.presence,
+        play: s.play,
+        undecided_by: s.undecided_by,
+    }
+}
+
+/// Whether the verdict `other` at another split leaves the claim `own` standing: `present` needs `present`
+/// there too; `absent` only needs no `present` (a bound that cannot be established on a shorter held-out
+/// part, or a shorter fit part, contradicts nothing: the profile and the reversals it needs are what a
+/// shorter part lacks, and checked alike the bound lost 64 of 238 play-free records, none of them a play).
+fn agrees(own: Presence, other: Presence) -> bool {
+    match own {
+        Presence::Absent => other != Presence::Present,
+        _ => other == own,
+    }
+}
+
+/// `first` with the splits' verdicts kept and said; `undetermined` where one contradicts it (see
+/// [`agrees`]).
+fn judged(mut first: BacklashSupport, splits: Vec<SplitVerdict>) -> BacklashSupport {
+    let said = splits
+        .iter()
+        .map(|s| {
+            format!(
+                "{} at {:.2} (play {})",
+                s.presence.word(),
+                s.fit_fraction,
+                if s.play.is_finite() {
+                    g(s.play)
+                } else {
+                    "not refitted".into()
+                }
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ");
+    let same = splits.iter().all(|s| s.presence == first.presence);
+    let stable = splits.iter().all(|s| agrees(first.presence, s.presence));
+    first.splits = splits;
+    if stable {
+        first.reasons.push(if same {
+            format!("the verdict holds at every split of the record judged: {said}")
+        } else {
+            format!("no split of the record judged finds play: {said}")
+        });
+        return first;
+    }
+    let why = format!(
+        "the verdict moves with the split of the record ({said}): the final model refitted on another fit \
+         part is judged otherwise, so the record does not settle it"
+    );
+    first.reasons.push(why.clone());
+    first.presence = Presence::Undetermined;
+    first.supported = false;
+    first.play_bound = None;
+    first.undecided_by =
+        vec!["the verdict moves with the split of the record (see the reasons)".into()];
+    first.verdict = format!("play is undetermined: {why}");
+    first.experiment = Some(
+        "a longer record excited alike throughout (the same amplitudes and rates in every part), so that \
+         every split of it sees the same play"
+            .into(),
+    );
+    first
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_neighbouring_splits_stay_among_the_accepted_fractions() {
+        assert_eq!(neighbours(0.7), vec![0.6, 0.8]);
+        assert_eq!(neighbours(0.35), vec![0.45]);
+        assert_eq!(neighbours(0.9), vec![0.8]);
+        assert_eq!(neighbours(0.3), vec![0.4]);
+    }
+
+    fn claim(presence: Presence) -> BacklashSupport {
+        let mut s = BacklashSupport::undetermined("for the test");
+        (s.presence, s.supported, s.play) = (presence, presence == Presence::Present, 1.5);
+        s.play_bound = (presence == Presence::Absent).then_some(0.2);
+        s
+    }
+
+    fn at(fit_fraction: f64, presence: Presence) -> SplitVerdict {
+        SplitVerdict {
+            fit_fraction,
+            presence,
+            play: 1.5,
+            undecided_by: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_verdict_that_moves_with_the_split_is_undetermined() {
+        use Presence::*;
+        for (own, other) in [
+            (Present, Undetermined),
+            (Absent, Present),
+            (Present, Absent),
+        ] {
+            let s = judged(claim(own), vec![at(0.6, own), at(0.7, own), at(0.8, other)]);
+            assert_eq!(s.presence, Undetermined, "{own:?} beside {other:?}");
+            assert!(!s.supported && s.play_bound.is_none() && s.experiment.is_some());
+            assert!(s.verdict.contains("moves with the split"), "{}", s.verdict);
+            assert!(s.verdict.contains(&format!("{} at 0.80", other.word())));
+            assert_eq!(s.splits.len(), 3);
+        }
+    }
+
+    #[test]
+    fn a_verdict_that_holds_at_every_split_stands() {
+        for own in [Presence::Present, Presence::Absent] {
+            let s = judged(claim(own), vec![at(0.6, own), at(0.7, own), at(0.8, own)]);
+            assert_eq!(s.presence, own);
+            assert_eq!(s.supported, own == Presence::Present);
+            assert_eq!(s.play_bound.is_some(), own == Presence::Absent);
+            assert!(s.reasons.last().unwrap().contains("holds at every split"));
+        }
+    }
+
+    #[test]
+    fn an_absent_play_stands_beside_a_split_without_a_bound() {
+        let s = judged(
+            claim(Presence::Absent),
+            vec![at(0.6, Presence::Undetermined), at(0.7, Presence::Absent)],
+        );
+        assert_eq!(s.presence, Presence::Absent);
+        assert_eq!(s.play_bound, Some(0.2));
+        assert!(
+            s.reasons
+                .last()
+                .unwrap()
+                .contains("no split of the record judged")
+        );
+    }
+
+    #[test]
+    fn a_model_that_cannot_be_refitted_elsewhere_is_said_so() {
+        let mut other = at(0.8, Presence::Undetermined);
+        other.play = f64::NAN;
+        let s = judged(
+            claim(Presence::Present),
+            vec![at(0.7, Presence::Present), other],
+        );
+        assert_eq!(s.presence, Presence::Undetermined);
+        assert!(
+            s.verdict
+                .contains("undetermined at 0.80 (play not refitted)"),
+            "{}",
+            s.verdict
+        );
+    }
+}
