@@ -122,7 +122,7 @@ pub fn diagnose_with_progress(
         fit_plain(&problem, s, cfg.restarts, cfg.seed, &linear).ok_or(DiagnoseError::NoFit)?;
     let mut d = rounds_from(&mut problem, cfg, base, &linear, choice, &initial)?;
     extend(&problem, cfg, &mut d);
-    let first = presence::assess(&problem, d.final_model(), presence::Halves::Refit);
+    let first = presence::assess(&problem, d.final_model(), presence::Depth::Full);
     d.backlash = stability::over_splits(&problem, d.final_model(), cfg.fit_fraction, first);
     let explained = {
         let last = d.steps().last().map_or(&d.base_sim.y, |c| &c.output);

@@ -170,22 +170,25 @@ struct Reading {
     travel: f64,
 }
 
-/// Whether a verdict refits the halves of the fit part: at the chosen split, yes; at another split
-/// (`diagnose::search::stability`), which asks whether the held-out evidence moves with the split, the halves of
-/// a fit part that overlaps the chosen one by most of its length would be the same test again.
+/// How much of the verdict is judged. At the chosen split, all of it. At another split
+/// (`diagnose::search::stability`), which asks only whether play would be found there too, the comparisons
+/// whose answer the split does not move are not made again: the halves (of a fit part that overlaps the
+/// chosen one by most of its length), the play-free imitators and the rival with play (judged on the chosen
+/// split's held-out part), and the bound (`absent` is not sought: the answer there is `present` or
+/// `undetermined`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Halves {
-    Refit,
-    Skip,
+pub(crate) enum Depth {
+    Full,
+    PresentOnly,
 }
 
 /// The verdict on play for the final model `last` of a diagnosis on problem `p`.
-pub(crate) fn assess(p: &Problem, last: &EffectModel, halves: Halves) -> BacklashSupport {
+pub(crate) fn assess(p: &Problem, last: &EffectModel, depth: Depth) -> BacklashSupport {
     (p.progress)("judging the play: the same model without a gap, and its play-free alternatives");
     let Some(first) = read(p, last, FINAL_MODEL) else {
         return unreadable();
     };
-    let (r, play_free, switched) = standing(p, first);
+    let (r, play_free, switched) = standing(p, first, depth);
     let mut reasons: Vec<String> = switched.into_iter().collect();
     let impossible = impossible(&r, &mut reasons);
     let reversals = [
@@ -197,7 +200,7 @@ pub(crate) fn assess(p: &Problem, last: &EffectModel, halves: Halves) -> Backlas
         r: &r,
         play_free: &play_free,
         reversals,
-        halves,
+        depth,
     };
     let mut out = cx.decide(impossible, &mut reasons);
     out.reasons = reasons;
@@ -206,12 +209,12 @@ pub(crate) fn assess(p: &Problem, last: &EffectModel, halves: Halves) -> Backlas
 
 /// The model the verdict stands on, the play-free models it is judged against and, where it is not the
 /// final model `first`, why. The play-free imitators are fitted only where the gap beats its zero-gap twin;
-/// a rival with play only for the imitators the final model does not beat.
-fn standing(p: &Problem, first: Reading) -> (Reading, Vec<PlayFree>, Option<String>) {
+/// a rival with play only for the imitators the final model does not beat; neither at [`Depth::PresentOnly`].
+fn standing(p: &Problem, first: Reading, depth: Depth) -> (Reading, Vec<PlayFree>, Option<String>) {
     let twin = play_free(p, &first.heldout, &first.model, TWIN);
     let gains = twin.as_ref().is_some_and(|t| beats(&first, t, MIN_Z));
     let mut free: Vec<PlayFree> = twin.into_iter().collect();
-    if !gains {
+    if !gains || depth == Depth::PresentOnly {
         return (first, free, None);
     }
     let last = first.fitted();
@@ -463,7 +466,7 @@ struct Context<'a, 'p> {
     r: &'a Reading,
     play_free: &'a [PlayFree],
     reversals: [usize; 2],
-    halves: Halves,
+    depth: Depth,
 }
 
 impl Context<'_, '_> {
@@ -479,7 +482,7 @@ impl Context<'_, '_> {
         let identified = self.identified(reasons);
         let mut halves = None;
         let present = !impossible && significant && gains && crossed && identified && {
-            self.halves == Halves::Skip || {
+            self.depth == Depth::PresentOnly || {
                 halves = self.halves();
                 self.halves_agree(halves, reasons)
             }
@@ -489,7 +492,8 @@ impl Context<'_, '_> {
         }
         let friction = self.friction_reads_as_play(reasons);
         let worse = self.worse_than_its_twin(reasons);
-        let bound = (!impossible && !gains && !significant && !friction && !worse)
+        let seek = self.depth == Depth::Full;
+        let bound = (seek && !impossible && !gains && !significant && !friction && !worse)
             .then(|| self.bound(reasons))
             .flatten();
         if let Some(b) = bound {
@@ -510,7 +514,7 @@ impl Context<'_, '_> {
                     .into(),
             ),
             (
-                !gains && !significant && !friction && !worse,
+                seek && !gains && !significant && !friction && !worse,
                 "no bound on the play could be established (see the reasons)".into(),
             ),
             (

@@ -1,16 +1,17 @@
-//! The verdict on play judged again at other splits of the record. A claim (`present` or
+//! The verdict on play judged again at the neighbouring splits of the record. A claim (`present` or
 //! `absent`) that a user can move by choosing another fit fraction is not a claim the record makes: the
-//! final model is refitted from where it ended on the fit parts of the splits [`SPLIT_STEP`] before and after the chosen one, judged
-//! there by the same rules, and where any of those verdicts contradicts it (`present` needs
-//! `present` at every split, `absent` no `present` at any) the answer is `undetermined`, with every split's
-//! verdict in the reasons. An `undetermined` answer claims nothing and is not re-judged.
-//! The halves of the fit part are refitted at the chosen split only: the other splits ask whether the
-//! held-out evidence moves with the split, and their fit parts overlap the chosen one by most of its length.
+//! final model is refitted from where it ended on the fit parts of the splits [`SPLIT_STEP`] before and
+//! after the chosen one, and judged there on whether play is present (`Depth::PresentOnly`: the gap
+//! against its zero-gap twin on that split's held-out part, its significance, the reversals that cross it,
+//! friction told from it; the halves, the imitators and the bound are the chosen split's). Where a neighbour
+//! contradicts the claim (`present` needs `present` at every split, `absent` no `present` at any) the answer
+//! is `undetermined`, with every split's verdict in the reasons. An `undetermined` answer claims nothing and
+//! is not re-judged.
 
 use rayon::prelude::*;
 
 use super::diagnosis::FIT_FRACTIONS;
-use super::presence::{self, BacklashSupport, Halves, Presence, SplitVerdict};
+use super::presence::{self, BacklashSupport, Depth, Presence, SplitVerdict};
 use crate::diagnose::fit::model::{EffectModel, Objective};
 use crate::diagnose::fit::problem::Problem;
 use crate::diagnose::fit::structure::fit_len;
@@ -73,7 +74,7 @@ fn at_split(p: &Problem, last: &EffectModel, f: f64) -> SplitVerdict {
             undecided_by: vec!["the final model could not be refitted on this fit part".into()],
         };
     };
-    let s = presence::assess(&q, &m, Halves::Skip);
+    let s = presence::assess(&q, &m, Depth::PresentOnly);
     SplitVerdict {
         fit_fraction: f,
         presence: s.presence,
@@ -83,9 +84,9 @@ fn at_split(p: &Problem, last: &EffectModel, f: f64) -> SplitVerdict {
 }
 
 /// Whether the verdict `other` at another split leaves the claim `own` standing: `present` needs `present`
-/// there too; `absent` only needs no `present` (a bound that cannot be established on a shorter held-out
-/// part, or a shorter fit part, contradicts nothing: the profile and the reversals it needs are what a
-/// shorter part lacks, and checked alike the bound lost 64 of 238 play-free records, none of them a play).
+/// there too; `absent` only needs no `present` there (no bound is sought at a neighbour: one that a shorter
+/// held-out or fit part cannot establish contradicts nothing, and required, it lost 64 of 238 play-free
+/// records, none of them a play).
 fn agrees(own: Presence, other: Presence) -> bool {
     match own {
         Presence::Absent => other != Presence::Present,
@@ -145,6 +146,72 @@ fn judged(mut first: BacklashSupport, splits: Vec<SplitVerdict>) -> BacklashSupp
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::diagnose::fit::lm::LmOptions;
+    use crate::diagnose::fit::model::BaseModel;
+    use crate::diagnose::fit::model::tests::{input, paper_base, with_noise};
+
+    /// The paper plant with the gaps `c1`, `c2` on the two-tone input, with noise, as a problem split at
+    /// 70%, and the true model.
+    fn judged_record(c1: f64, c2: f64, m2: f64) -> (Vec<f64>, Vec<f64>, EffectModel) {
+        let m = EffectModel::plain(BaseModel {
+            c1,
+            c2,
+            m2,
+            ..paper_base()
+        });
+        let u = input(2000);
+        let sim = m.simulate(&u, crate::diagnose::fit::model::Rest::ZERO, 2000, 1e6);
+        let y = with_noise(&sim.expect("the paper plant runs").y, 0.02, 7);
+        (u, y, m)
+    }
+
+    /// At a neighbouring split only presence is judged: the twin alone is fitted, no halves, no bound.
+    #[test]
+    fn a_neighbour_judges_presence_only() {
+        let (u, y, m) = judged_record(0.2, 0.3, 1.5);
+        let p = Problem::new(&u, &y, 1400, LmOptions::default());
+        let full = presence::assess(&p, &m, Depth::Full);
+        let near = presence::assess(&p, &m, Depth::PresentOnly);
+        assert_eq!(full.presence, Presence::Present, "{:?}", full.reasons);
+        assert_eq!(near.presence, Presence::Present, "{:?}", near.reasons);
+        assert!(full.halves.is_some() && near.halves.is_none());
+        assert!(full.play_free.len() > 1 && near.play_free.len() == 1);
+        let (u, y, m) = judged_record(0.0, 0.0, 1.0);
+        let p = Problem::new(&u, &y, 1400, LmOptions::default());
+        let full = presence::assess(&p, &m, Depth::Full);
+        let near = presence::assess(&p, &m, Depth::PresentOnly);
+        assert_eq!(full.presence, Presence::Absent, "{:?}", full.reasons);
+        assert_eq!(near.presence, Presence::Undetermined, "{:?}", near.reasons);
+        assert!(near.play_bound.is_none());
+    }
+
+    /// The whole check on a record with play: present at 0.7 and at both neighbours, listed in order.
+    #[test]
+    fn a_play_is_judged_present_at_every_neighbour() {
+        let (u, y, m) = judged_record(0.2, 0.3, 1.5);
+        let p = Problem::new(&u, &y, fit_len(u.len(), 0.7), LmOptions::default());
+        let first = presence::assess(&p, &m, Depth::Full);
+        let s = over_splits(&p, &m, 0.7, first);
+        assert_eq!(s.presence, Presence::Present, "{:?}", s.reasons);
+        let at: Vec<_> = s
+            .splits
+            .iter()
+            .map(|v| (v.fit_fraction, v.presence))
+            .collect();
+        assert_eq!(
+            at,
+            [
+                (0.6, Presence::Present),
+                (0.7, Presence::Present),
+                (0.8, Presence::Present)
+            ]
+        );
+        assert!(
+            s.splits.iter().all(|v| (v.play - 0.5).abs() < 0.05),
+            "{:?}",
+            s.splits
+        );
+    }
 
     #[test]
     fn the_neighbouring_splits_stay_among_the_accepted_fractions() {
