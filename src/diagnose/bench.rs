@@ -167,6 +167,7 @@ mod tests {
         gap_drift: "with fixed gaps both would stay at zero",
         linear_order: "the linear block misses a term or a delay",
         periodic: "stands far above the noise floor",
+        polynomial_feedback: "what the fitted feedback changes",
         quantization: "sit on a grid of step",
         saturation: "is the measured output cut off at its extremes?",
         }
