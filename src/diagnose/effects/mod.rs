@@ -14,7 +14,7 @@
 //! | `friction` | elasto-plastic Coulomb element with the backlash, slip levels F+ and -F-, *series* (after the backlash output) or *contact* (the play inside the element's spring); both fitted, the better kept | F+, F-, form (k_e = 1: the stiffness is carried by b, as m1 = 1) | extremes, since reversal, by mode, Billings, drift, Ljung-Box |
 //! | `direction-dependent` | the linear block has a second set of coefficients for while its output falls: x(k) = x_rise(k) unless that falls below x(k-1), then x_fall(k) | a_fall, b_fall (same orders) | by mode, since reversal, Billings, Ljung-Box |
 //! | `dead-zone` | the linear block sees 0 while \|u\| <= width, u - width sign(u) beyond | the width | Billings, against x_hat, extremes, cross-correlation, Ljung-Box |
-//! | `polynomial-feedback` | x(k) = the linear block's value + phi(x(k-1)) + r phi(x(k-2)), phi(x) = q2 x^2 + q3 x^3 (a cubic spring in feedback, Duffing: a force held over a sample enters through two taps) | q2, q3, r | Billings, extremes, against x_hat |
+//! | `polynomial-feedback` | x(k) = the linear block's value + phi(x(k-1)) + r phi(x(k-2)), phi(x) = q2 x^2 + q3 x^3 (a cubic spring in feedback, Duffing: a force held over a sample enters through two taps) | q2, q3, r | none: a rival of play only (the verdict on play fits it; the rounds never do) |
 //!
 //! ## What an effect says about itself
 //!
@@ -81,7 +81,8 @@ pub trait Effect: Sync {
     /// What the extension adds to the declared model, in words.
     fn describe(&self) -> &'static str;
 
-    /// The residual tests whose rejection makes this effect a candidate, most specific first.
+    /// The residual tests whose rejection makes this effect a candidate, most specific first; none for a
+    /// rival of play that the rounds never fit (its `imitates_play` is true).
     fn pointing_tests(&self) -> &'static [&'static str];
 
     /// The fits a candidate needs: its structures and their starts, or `None` when the data give it no
@@ -314,7 +315,8 @@ mod unit {
                 serde_json::to_string(&e).unwrap(),
                 format!("\"{}\"", e.as_str())
             );
-            assert!(!e.pointing_tests().is_empty());
+            // Only a rival of play may have no test pointing to it.
+            assert!(!e.pointing_tests().is_empty() || e.effect().imitates_play());
             assert!(!e.describe().is_empty());
         }
         assert_eq!(EffectId::parse("offset"), None);
@@ -367,9 +369,11 @@ mod unit {
                 "saturation",
                 "friction",
                 "direction-dependent",
-                "dead-zone",
-                "polynomial-feedback"
+                "dead-zone"
             ]
+        );
+        assert!(
+            EffectId::parse("polynomial-feedback").is_some_and(|e| e.pointing_tests().is_empty())
         );
         assert_eq!(pointed(DRIFT), ["gap-drift", "friction"]);
         assert_eq!(
