@@ -27,7 +27,7 @@ use serde::Serialize;
 
 pub use super::alternatives::PlayFree;
 use super::alternatives::{Fitted, best_rival, better_by, heldout_errors, imitators, play_free};
-use crate::diagnose::fit::model::{EffectModel, Objective, Rest, Simulation};
+use crate::diagnose::fit::model::{EffectModel, Objective, Simulation};
 use crate::diagnose::fit::problem::Problem;
 use crate::diagnose::residual::{self, statistics::diebold_mariano};
 // A number in a sentence: the rule of the text output and the report, so that the three print it alike.
@@ -704,24 +704,14 @@ impl Context<'_, '_> {
         enough || (few && strong)
     }
 
-    /// The plays of the fit part's two halves, each refitted from the final model, with their standard
-    /// errors (infinite where a half does not determine them).
+    /// The plays of the fit part's two halves, each refitted from the final model to its own samples of a
+    /// simulation of the fit part (`Problem::range_play`: the linear block held, the second half starting in
+    /// the state the first left), with their standard errors (infinite where a half does not determine them).
     fn halves(&self) -> Option<[(f64, f64); 2]> {
         let p = self.p;
         let h = p.n_fit / 2;
-        let first = p.shortened(h);
-        let mut second = Problem::new(&p.u[h..], &p.y[h..], p.n_fit - h, p.lm);
-        // Mid-record the model is in motion: it starts at rest at the half's first input, the nearest state
-        // a fresh start has.
-        second.rest = Rest(p.u[h]);
-        second.x_scale = p.x_scale;
         let m = &self.r.model;
-        let play = |q: &Problem| {
-            let (f, _) = q.fit(m, std::slice::from_ref(m), Objective::Simulation)?;
-            let var = q.combination_variance(&f, &f.play_weights(q.time_scale));
-            Some((f.play(), var.map_or(f64::INFINITY, |v| v.sandwich.sqrt())))
-        };
-        Some([play(&first)?, play(&second)?])
+        Some([p.range_play(m, 0..h)?, p.range_play(m, h..p.n_fit)?])
     }
 
     /// Whether the halves' plays agree (see [`HALF_TOLERANCE`]), in words.
