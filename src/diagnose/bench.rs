@@ -143,14 +143,19 @@ mod tests {
                 }
             )*
 
-            /// Every effect of the catalogue has its bench check above.
+            /// Every effect of the catalogue that the rounds fit (a test points to it) has its bench check
+            /// above; a rival of play only is never named.
             #[test]
             fn every_effect_has_its_bench_check() {
                 let checked = [$(crate::diagnose::effects::$effect::ID),*];
-                for e in crate::diagnose::effects::CATALOGUE {
+                let named: Vec<_> = crate::diagnose::effects::CATALOGUE
+                    .iter()
+                    .filter(|e| !e.pointing_tests().is_empty())
+                    .collect();
+                for e in &named {
                     assert!(checked.contains(&e.id()), "no bench check for {}", e.id());
                 }
-                assert_eq!(checked.len(), crate::diagnose::effects::CATALOGUE.len());
+                assert_eq!(checked.len(), named.len());
             }
         };
     }

@@ -5,7 +5,7 @@ use crate::fmi::Model;
 use crate::fmi::vars::{Value, VarInfo};
 use crate::plant::effects::{
     ColouredNoise, CurvedBorders, DeadZone, DirectionDependent, Effects, Friction, FrictionForm,
-    GapDrift, Periodic, Quantization, Saturation,
+    GapDrift, Periodic, PolynomialFeedback, Quantization, Saturation,
 };
 use crate::plant::{
     MAX_ORDER, Plant, PlantExtensions, PlantOutput, PlantParams, PolyBacklashParams,
@@ -39,7 +39,7 @@ pub struct PlantFmu {
 
 /// The test-bench parameters of the FMU. Each effect is off at its default: zero rates, straight curves,
 /// `friction = 0`, zero amplitude, `noise_phi = 0`, `saturation = 0`, `quant_step = 0`,
-/// `dead_zone = 0`.
+/// `dead_zone = 0`, `feedback2 = feedback3 = 0` (`feedback_lag2` alone switches nothing on).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 struct Bench {
     c_rate: [f64; 2],
@@ -62,6 +62,10 @@ struct Bench {
     /// Width of the input dead zone (0: off).
     #[serde(default)]
     dead_zone: f64,
+    /// feedback2, feedback3, feedback_lag2: polynomial feedback of x(k-1) and x(k-2) in the ARX block
+    /// (feedback2 and feedback3 both 0: off).
+    #[serde(default)]
+    feedback: [f64; 3],
 }
 
 impl Bench {
@@ -81,6 +85,7 @@ impl Bench {
         fall_a: [0.0; MAX_ORDER],
         fall_b: [0.0; MAX_ORDER + 1],
         dead_zone: 0.0,
+        feedback: [0.0; 3],
     };
 
     /// The library's effects, with rates and frequencies per sample of period `ts`. The layer has checked
@@ -90,6 +95,11 @@ impl Bench {
     fn effects(&self, ts: f64) -> Result<Effects, String> {
         let e = Effects {
             direction_dependent: self.direction_dependent_effect()?,
+            polynomial_feedback: (self.feedback[..2] != [0.0; 2]).then_some(PolynomialFeedback {
+                quadratic: self.feedback[0],
+                cubic: self.feedback[1],
+                lag2: self.feedback[2],
+            }),
             gap_drift: (self.c_rate != [0.0; 2]).then(|| GapDrift {
                 c1_rate: self.c_rate[0] * ts,
                 c2_rate: self.c_rate[1] * ts,
@@ -404,6 +414,9 @@ impl Model for PlantFmu {
             Var::B3Fall => r(b.fall_b[3]),
             Var::B4Fall => r(b.fall_b[4]),
             Var::DeadZone => r(b.dead_zone),
+            Var::Feedback2 => r(b.feedback[0]),
+            Var::Feedback3 => r(b.feedback[1]),
+            Var::FeedbackLag2 => r(b.feedback[2]),
         }
     }
 
@@ -479,6 +492,9 @@ impl Model for PlantFmu {
             Var::B3Fall => self.bench.fall_b[3] = x,
             Var::B4Fall => self.bench.fall_b[4] = x,
             Var::DeadZone => self.bench.dead_zone = x,
+            Var::Feedback2 => self.bench.feedback[0] = x,
+            Var::Feedback3 => self.bench.feedback[1] = x,
+            Var::FeedbackLag2 => self.bench.feedback[2] = x,
             // Outputs: the layer refuses to set them before calling here.
             Var::Y | Var::W | Var::X | Var::F => {}
         }
@@ -536,6 +552,38 @@ impl Model for PlantFmu {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// feedback2 and feedback3 switch the polynomial feedback on (either non-zero) with their values and
+    /// feedback_lag2's, as the FMU reads them back; feedback_lag2 alone switches nothing on; on the
+    /// continuous block the feedback is refused by name at initialisation.
+    #[test]
+    fn polynomial_feedback_parameters_reach_the_plant() {
+        let mut fmu = PlantFmu::new();
+        fmu.set(Var::FeedbackLag2, Value::Real(0.8));
+        assert_eq!(fmu.get(Var::FeedbackLag2), Value::Real(0.8));
+        assert_eq!(fmu.bench.effects(1.0).unwrap().polynomial_feedback, None);
+        fmu.set(Var::Feedback3, Value::Real(-0.05));
+        assert_eq!(fmu.get(Var::Feedback3), Value::Real(-0.05));
+        assert_eq!(
+            fmu.bench.effects(1.0).unwrap().polynomial_feedback,
+            Some(PolynomialFeedback {
+                quadratic: 0.0,
+                cubic: -0.05,
+                lag2: 0.8
+            })
+        );
+        fmu.set(Var::Feedback2, Value::Real(0.01));
+        assert_eq!(fmu.get(Var::Feedback2), Value::Real(0.01));
+        assert_eq!(fmu.exit_initialization(), Ok(()));
+        let mut cont = PlantFmu::new();
+        cont.set(Var::Feedback3, Value::Real(-0.05));
+        cont.set(Var::Linear, Value::Integer(1));
+        cont.set(Var::Num0, Value::Real(1.0));
+        cont.set(Var::Den0, Value::Real(1.0));
+        cont.set(Var::Den1, Value::Real(1.0));
+        let err = cont.exit_initialization().unwrap_err();
+        assert!(err.contains("polynomial feedback"), "{err}");
+    }
 
     /// The saturation's limits may meet (a constant output) but not cross: sat_lo above sat_hi is refused
     /// at initialisation by name, with either switch on; off, the limits are not looked at.

@@ -26,6 +26,7 @@
 //! | quantization | [`Quantization`] | `step`, `offset` | sensor (last) |
 //! | dead-zone | [`DeadZone`] | `width`: inputs with \|u\| up to it move nothing | actuator (before the linear block) |
 //! | direction-dependent | [`DirectionDependent`] | the falling set `a`, `b` of the linear block | linear block |
+//! | polynomial-feedback | [`PolynomialFeedback`] | `quadratic`, `cubic`, `lag2`: x(k) gains `phi(x(k-1)) + lag2 phi(x(k-2))`, `phi(x) = quadratic x^2 + cubic x^3` | linear block |
 //! | extra-delay | none: `ArxParams::delay` | | linear block |
 //! | linear-order | none: `ArxParams::na`, `nb` and coefficients | | linear block |
 //!
@@ -199,6 +200,38 @@ impl DirectionDependent {
     }
 }
 
+/// Polynomial feedback in the linear block, the discrete image of a spring whose stiffness grows (or falls)
+/// with its deflection (a Duffing oscillator, x'' + 2 zeta w x' + w^2 (x + kappa x^3) = w^2 F). The spring's
+/// force `phi(x) = quadratic x^2 + cubic x^3` (beyond the linear part, which is the block's own) acts on the
+/// mass as the drive does: held over a sample, a force enters x(k) through two taps, at k-1 and k-2 (a
+/// zero-order hold of a second-order block), so the block's output at sample k is its linear value plus
+/// [`PolynomialFeedback::term`] = `phi(x(k-1)) + lag2 phi(x(k-2))`. The quadratic term places the spring's
+/// centre (a cubic about x0 is a quadratic and a cubic about 0, its linear part the block's own `a`). A
+/// negative `cubic` stiffens the spring; a positive one softens it, and far enough out the block runs away as
+/// an unstable one does. `quadratic` and `cubic` zero is the plain block.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PolynomialFeedback {
+    pub quadratic: f64,
+    pub cubic: f64,
+    /// The second tap's weight (0: the force enters through x(k-1) alone).
+    #[serde(default)]
+    pub lag2: f64,
+}
+
+impl PolynomialFeedback {
+    /// The spring's force beyond its linear part at deflection `x`.
+    #[inline]
+    pub fn force(&self, x: f64) -> f64 {
+        x * x * (self.quadratic + self.cubic * x)
+    }
+
+    /// What the feedback adds to x(k) after the block's outputs `x1` = x(k-1) and `x2` = x(k-2).
+    #[inline]
+    pub fn term(&self, x1: f64, x2: f64) -> f64 {
+        self.force(x1) + self.lag2 * self.force(x2)
+    }
+}
+
 /// An actuator or valve dead zone on the input: an input with |u| up to `width` moves nothing; a larger one
 /// acts shifted towards zero by the width, `u - width sign(u)` ([`DeadZone::apply`]). Width 0 is the plain
 /// input.
@@ -226,6 +259,7 @@ impl DeadZone {
 pub struct Effects {
     pub dead_zone: Option<DeadZone>,
     pub direction_dependent: Option<DirectionDependent>,
+    pub polynomial_feedback: Option<PolynomialFeedback>,
     pub gap_drift: Option<GapDrift>,
     pub curved_borders: Option<CurvedBorders>,
     pub friction: Option<Friction>,
@@ -249,6 +283,11 @@ impl Effects {
                 check_finite(&format!("b{j}_fall"), *v)?;
             }
             check_finite("offset_fall", d.offset)?;
+        }
+        if let Some(p) = &self.polynomial_feedback {
+            check_finite("feedback2", p.quadratic)?;
+            check_finite("feedback3", p.cubic)?;
+            check_finite("feedback_lag2", p.lag2)?;
         }
         if let Some(g) = &self.gap_drift {
             check_finite("c1_rate", g.c1_rate)?;

@@ -172,6 +172,11 @@ impl Arx {
         self.x_hist.get(0)
     }
 
+    /// x(k-i), `i` from 1 to [`MAX_ORDER`] (0 before the first outputs).
+    pub fn output_ago(&self, i: usize) -> f64 {
+        self.x_hist.get(i - 1)
+    }
+
     /// Close sample k: remember its input `u_k` and output `x_k`.
     pub fn push(&mut self, u_k: f64, x_k: f64) {
         self.x_hist.push(x_k);

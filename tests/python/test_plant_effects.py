@@ -149,6 +149,29 @@ def test_direction_dependent_block_matches_numpy(plant_fmu):
     assert np.max(np.abs(got["x"] - x_ref)) > 0.1
 
 
+def test_polynomial_feedback_matches_numpy(plant_fmu):
+    """The feedback as the XML describes it: x(k) of the ARX block gains phi(x(k-1)) +
+    feedback_lag2 phi(x(k-2)), phi(x) = feedback2 x^2 + feedback3 x^3; the backlash after it is the plain one."""
+    u = _input(1200, 9)
+    start = {"feedback2": 0.02, "feedback3": -0.006, "feedback_lag2": 0.7}
+    got = _run(plant_fmu, u, start)
+    x = np.zeros(len(u))
+
+    def phi(v):
+        return 0.02 * v**2 - 0.006 * v**3
+
+    for k in range(1, len(u)):
+        past = sum(-ai * x[k - 1 - i] for i, ai in enumerate(PAPER["a"]) if k - 1 - i >= 0)
+        older = phi(x[k - 2]) if k >= 2 else 0.0
+        x[k] = past + PAPER["b"][0] * u[k - 1] + phi(x[k - 1]) + 0.7 * older
+    np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-12)
+    w, _, _ = bench(x, np.zeros(len(u)), PAPER)
+    np.testing.assert_allclose(got["w"], w, rtol=0, atol=1e-12)
+    # The effect does something: x differs from the plain block's.
+    x_ref, _ = reference.simulate(u, **PAPER)
+    assert np.max(np.abs(got["x"] - x_ref)) > 0.1
+
+
 def test_effects_off_is_the_plain_plant(plant_fmu):
     """Neutral settings (zero amplitude and rates, saturation limits far outside the signal) give the plain
     plant bit for bit."""

@@ -179,7 +179,7 @@ const BINS: usize = 20;
 
 /// The means of `points` (x, v) over `bins` equal bins of the x they cover, at each non-empty bin's mean x
 /// (nothing for no points: a curve is never drawn where the data do not reach).
-fn binned_means(points: &[(f64, f64)], bins: usize) -> Vec<(f64, f64)> {
+pub(crate) fn binned_means(points: &[(f64, f64)], bins: usize) -> Vec<(f64, f64)> {
     let (lo, hi) = points
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (x, _)| {
@@ -201,7 +201,7 @@ fn binned_means(points: &[(f64, f64)], bins: usize) -> Vec<(f64, f64)> {
 }
 
 /// RMS of the differences of two curves' values, point by point.
-fn rms_distance(a: &[(f64, f64)], b: &[(f64, f64)]) -> f64 {
+pub(crate) fn rms_distance(a: &[(f64, f64)], b: &[(f64, f64)]) -> f64 {
     crate::stats::rms(a.iter().zip(b).map(|(p, q)| p.1 - q.1))
 }
 

@@ -63,9 +63,15 @@ impl Element for Friction {
         vec![s.y; 2]
     }
 
-    /// The contact element has straight borders: it never goes with curved borders.
+    /// The contact element has straight borders: it never goes with curved borders. Neither form goes with
+    /// polynomial feedback: the element's spring and slip levels change the gain with the amplitude as a
+    /// stiffness that changes with deflection does, and fitted together the two trade the loop between them
+    /// while a gap beside them takes what is left (a Coulomb-viscous mass without play fitted as friction,
+    /// feedback and a play 11% of its travel wide, `present`). Each is a rival of play on its own. (The plan
+    /// checks this rule both ways: friction is not fitted on a model with polynomial feedback.)
     fn blocks(&self, ext: &Extension, other: EffectId) -> bool {
-        form(ext) == FrictionForm::Contact && other == super::curved_borders::ID
+        (form(ext) == FrictionForm::Contact && other == super::curved_borders::ID)
+            || other == super::polynomial_feedback::ID
     }
 }
 

@@ -14,6 +14,7 @@
 //! | `friction` | elasto-plastic Coulomb element with the backlash, slip levels F+ and -F-, *series* (after the backlash output) or *contact* (the play inside the element's spring); both fitted, the better kept | F+, F-, form (k_e = 1: the stiffness is carried by b, as m1 = 1) | extremes, since reversal, by mode, Billings, drift, Ljung-Box |
 //! | `direction-dependent` | the linear block has a second set of coefficients for while its output falls: x(k) = x_rise(k) unless that falls below x(k-1), then x_fall(k) | a_fall, b_fall (same orders) | by mode, since reversal, Billings, Ljung-Box |
 //! | `dead-zone` | the linear block sees 0 while \|u\| <= width, u - width sign(u) beyond | the width | Billings, against x_hat, extremes, cross-correlation, Ljung-Box |
+//! | `polynomial-feedback` | x(k) = the linear block's value + phi(x(k-1)) + r phi(x(k-2)), phi(x) = q2 x^2 + q3 x^3 (a cubic spring in feedback, Duffing: a force held over a sample enters through two taps) | q2, q3, r | none: a rival of play only (the verdict on play fits it; the rounds never do) |
 //!
 //! ## What an effect says about itself
 //!
@@ -42,6 +43,7 @@ pub mod friction;
 pub mod gap_drift;
 pub mod linear_order;
 pub mod periodic;
+pub mod polynomial_feedback;
 pub mod quantization;
 pub mod rig;
 pub mod saturation;
@@ -56,7 +58,7 @@ use figure::Figure;
 use rig::{Draw, Rig};
 
 /// Every effect of the catalogue, in the contract's order. Adding an effect is a module and a line here.
-pub static CATALOGUE: [&dyn Effect; 11] = [
+pub static CATALOGUE: [&dyn Effect; 12] = [
     &gap_drift::GapDrift,
     &curved_borders::CurvedBorders,
     &extra_delay::ExtraDelay,
@@ -68,6 +70,7 @@ pub static CATALOGUE: [&dyn Effect; 11] = [
     &friction::Friction,
     &direction_dependent::DirectionDependent,
     &dead_zone::DeadZone,
+    &polynomial_feedback::PolynomialFeedback,
 ];
 
 /// One entry of the catalogue. Everything the diagnosis does with an effect goes through this trait.
@@ -78,7 +81,8 @@ pub trait Effect: Sync {
     /// What the extension adds to the declared model, in words.
     fn describe(&self) -> &'static str;
 
-    /// The residual tests whose rejection makes this effect a candidate, most specific first.
+    /// The residual tests whose rejection makes this effect a candidate, most specific first; none for a
+    /// rival of play that the rounds never fit (its `imitates_play` is true).
     fn pointing_tests(&self) -> &'static [&'static str];
 
     /// The fits a candidate needs: its structures and their starts, or `None` when the data give it no
@@ -115,7 +119,7 @@ pub trait Effect: Sync {
     }
 
     /// Whether this effect, without a gap, explains records that a model with play also fits (a smooth
-    /// curve, friction, direction-dependent dynamics, a dead zone, clipping): the verdict on play tries the
+    /// curve, friction, direction-dependent dynamics, a dead zone, clipping, a stiffening spring): the verdict on play tries the
     /// zero-gap model with it added, and play is present only where the model with a gap beats that too.
     fn imitates_play(&self) -> bool {
         false
@@ -311,7 +315,8 @@ mod unit {
                 serde_json::to_string(&e).unwrap(),
                 format!("\"{}\"", e.as_str())
             );
-            assert!(!e.pointing_tests().is_empty());
+            // Only a rival of play may have no test pointing to it.
+            assert!(!e.pointing_tests().is_empty() || e.effect().imitates_play());
             assert!(!e.describe().is_empty());
         }
         assert_eq!(EffectId::parse("offset"), None);
@@ -332,6 +337,7 @@ mod unit {
             ("friction", "Coulomb"),
             ("direction-dependent", "while its output falls"),
             ("dead-zone", "dead zone"),
+            ("polynomial-feedback", "q3 x^3"),
         ];
         assert_eq!(words.len(), CATALOGUE.len());
         for (name, said) in words {
@@ -345,7 +351,7 @@ mod unit {
     #[test]
     fn tests_point_to_the_effects_of_the_table() {
         use crate::diagnose::residual::test_names::{
-            CLIPPING, CROSS_CORRELATION, DRIFT, LATTICE, LJUNG_BOX, SPECTRUM_PEAK,
+            BILLINGS, CLIPPING, CROSS_CORRELATION, DRIFT, LATTICE, LJUNG_BOX, SPECTRUM_PEAK,
         };
         let pointed = |test: &str| -> Vec<&str> {
             EffectId::pointed_by(test)
@@ -356,6 +362,19 @@ mod unit {
         assert_eq!(pointed(LATTICE), ["quantization"]);
         assert_eq!(pointed(SPECTRUM_PEAK), ["periodic-disturbance"]);
         assert_eq!(pointed(CLIPPING), ["saturation"]);
+        assert_eq!(
+            pointed(BILLINGS),
+            [
+                "curved-borders",
+                "saturation",
+                "friction",
+                "direction-dependent",
+                "dead-zone"
+            ]
+        );
+        assert!(
+            EffectId::parse("polynomial-feedback").is_some_and(|e| e.pointing_tests().is_empty())
+        );
         assert_eq!(pointed(DRIFT), ["gap-drift", "friction"]);
         assert_eq!(
             pointed(CROSS_CORRELATION),

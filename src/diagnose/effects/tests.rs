@@ -4,7 +4,7 @@
 use super::*;
 use crate::diagnose::effects::{
     coloured_noise, curved_borders, direction_dependent, friction, gap_drift, periodic,
-    quantization, saturation,
+    polynomial_feedback, quantization, saturation,
 };
 use crate::diagnose::fit::model::tests::{input, paper_base};
 use crate::diagnose::fit::model::{BaseModel, EffectModel, Rest, Simulation};
@@ -211,8 +211,9 @@ fn extension_parameters_are_checked() {
     );
 }
 
-/// Each entry once; curved borders never with contact friction (and the reverse); anything else
-/// combines.
+/// Each entry once; curved borders never with contact friction (and the reverse); polynomial feedback never
+/// with friction of either form (and the reverse: friction's plan has nothing to fit on a model with the
+/// feedback); anything else combines.
 #[test]
 fn which_extensions_combine() {
     let plain = EffectModel::plain(paper_base());
@@ -229,6 +230,15 @@ fn which_extensions_combine() {
     assert!(!curved.has_contact());
     assert!(!curved.admits(&contact));
     assert!(curved.admits(&friction::extension(1.0, 1.0, FrictionForm::Series)));
+    let series = plain.with(friction::extension(1.0, 1.0, FrictionForm::Series));
+    assert!(!series.can_add(polynomial_feedback::ID));
+    assert!(!with_contact.can_add(polynomial_feedback::ID));
+    let spring = plain.with(polynomial_feedback::extension(0.0, -0.01, 1.0));
+    assert!(!spring.admits(&friction::extension(1.0, 1.0, FrictionForm::Series)));
+    let y = input(50);
+    let cx = crate::diagnose::fit::starts::tests::context(&spring, &y, &y, &y);
+    assert!(friction::Friction.plan(&cx).is_none());
+    assert!(spring.can_add(saturation::ID));
 }
 
 /// Every effect of the catalogue describes itself, answers a plan or none on a plain context, and every

@@ -7,7 +7,9 @@ use std::borrow::Cow;
 use serde::Serialize;
 
 use crate::diagnose::id::EffectId;
-use crate::plant::effects::{self, DirectionDependent, Effects, FrictionForm, Quantization};
+use crate::plant::effects::{
+    self, DirectionDependent, Effects, FrictionForm, PolynomialFeedback, Quantization,
+};
 use crate::plant::{BacklashParams, Mode};
 
 /// The declared model: `x(k) = -sum a_i x(k-i) + sum b_j u(k-delay-j)`, backlash with m1 = 1, m2, c1, c2.
@@ -385,7 +387,8 @@ impl EffectModel {
 
     /// Whether the extension of `id` can be added: each entry once; nothing after a noise model (it
     /// describes what the deterministic part leaves, so it ends the search); nothing an extension the model
-    /// has rules out ([`Element::blocks`]: curved borders and friction with the play inside its spring).
+    /// has rules out ([`Element::blocks`]: curved borders and friction with the play inside its spring;
+    /// polynomial feedback and friction).
     /// Effects that change the base model's structure combine with everything.
     pub fn can_add(&self, id: EffectId) -> bool {
         self.extension(id).is_none()
@@ -640,6 +643,7 @@ impl<'a> Runner<'a> {
             Cow::Borrowed(u)
         };
         let u_rest = eff.actuator(rest.0);
+        let x_rest = rest_output(&m.base, eff.polynomial_feedback.as_ref(), u_rest);
         let slack = 1e-12 * limit
             + match &eff.gap_drift {
                 Some(d) => (d.c1_rate.abs() + d.c2_rate.abs()) * 1.000_001,
@@ -656,7 +660,7 @@ impl<'a> Runner<'a> {
             expected,
             input,
             u_rest,
-            x_rest: m.base.static_gain() * u_rest,
+            x_rest,
             slack,
             limit,
             n,
@@ -695,14 +699,20 @@ impl<'a> Runner<'a> {
         x
     }
 
-    /// The linear block's output at sample k (with a falling set, the one the direction asks for).
+    /// The linear block's output at sample k (with a falling set, the one the direction asks for; with
+    /// polynomial feedback, its term of x(k-1) and x(k-2) added to either), as the plant computes it.
     fn x_at(&self, k: usize, xs: &[f64]) -> f64 {
         let b = self.base;
-        let rise = self.linear(&b.a, &b.b, k, xs);
+        let ago = |i: usize| if k >= i { xs[k - i] } else { self.x_rest };
+        let prev = ago(1);
+        let feedback = self
+            .eff
+            .polynomial_feedback
+            .map_or(0.0, |f| f.term(prev, ago(2)));
+        let rise = self.linear(&b.a, &b.b, k, xs) + feedback;
         match &self.eff.direction_dependent {
             Some(fall) => {
-                let prev = if k > 0 { xs[k - 1] } else { self.x_rest };
-                let x_fall = self.linear(&fall.a[..b.na], &fall.b[..=b.nb], k, xs);
+                let x_fall = self.linear(&fall.a[..b.na], &fall.b[..=b.nb], k, xs) + feedback;
                 DirectionDependent::choose(prev, rise, x_fall)
             }
             None => rise,
@@ -815,6 +825,37 @@ fn is_memoryless(base: &BaseModel, eff: &Effects) -> bool {
             .as_ref()
             .is_none_or(|c| c.upper == c.lower)
 }
+
+/// The linear block's output at rest at the input `u_rest`: the static gain times it, or with polynomial
+/// feedback the rest point nearest that, `(1 + sum a) x - (1 + lag2) force(x) = sum b u_rest` solved by Newton's
+/// method from it (the linear value when Newton does not settle: a softening spring with no rest point
+/// there). At rest at 0 it is 0, as the plant starts.
+fn rest_output(base: &BaseModel, feedback: Option<&PolynomialFeedback>, u_rest: f64) -> f64 {
+    let linear = base.static_gain() * u_rest;
+    let Some(f) = feedback.filter(|_| u_rest != 0.0) else {
+        return linear;
+    };
+    let den = 1.0 + base.a.iter().sum::<f64>();
+    let drive = base.b.iter().sum::<f64>() * u_rest;
+    let mut x = linear;
+    for _ in 0..REST_NEWTON_STEPS {
+        let taps = 1.0 + f.lag2;
+        let g = den * x - taps * f.force(x) - drive;
+        let slope = den - taps * x * (2.0 * f.quadratic + 3.0 * f.cubic * x);
+        let next = x - g / slope;
+        if !next.is_finite() {
+            return linear;
+        }
+        if (next - x).abs() <= 1e-12 * (1.0 + x.abs()) {
+            return next;
+        }
+        x = next;
+    }
+    linear
+}
+
+/// Newton steps [`rest_output`] takes at most.
+const REST_NEWTON_STEPS: usize = 50;
 
 /// The stability test of the linear block (shared with the recursive estimator).
 pub use crate::plant::linear::is_stable;

@@ -251,6 +251,43 @@ mod tests {
         }
     }
 
+    /// On records of the paper's model (play 1.5) the zero-gap model with polynomial feedback is fitted
+    /// among the imitators, and the model with the gap predicts the held-out part clearly better than it: a
+    /// spring that stiffens does not hold the output across the gap after each reversal.
+    #[test]
+    fn polynomial_feedback_does_not_replace_a_play() {
+        let n = 3000;
+        let (u, sim) = paper_record(n);
+        let structure = Structure {
+            na: 2,
+            nb: 0,
+            delay: 1,
+        };
+        for seed in 0..2 {
+            let y = with_noise(&sim.y, 0.05, seed);
+            let p = Problem::new(&u, &y, fit_len(n, 0.7), LmOptions::default());
+            let linear = fit_linear(&p, structure).unwrap();
+            let (plain, _) = fit_plain(&p, structure, 3, 0, &linear).unwrap();
+            let sim = plain.simulate(p.u, p.rest, p.u.len(), p.limit).unwrap();
+            let last = Fitted {
+                name: "the final model".into(),
+                heldout: heldout_errors(&p, &sim),
+                model: plain.clone(),
+            };
+            let found = imitators(&p, &last, &sim, &plain, "zero-gap");
+            let spring = found
+                .iter()
+                .find(|im| im.effect == "polynomial-feedback")
+                .expect("polynomial feedback imitates play");
+            assert_eq!(spring.free.model, "zero-gap + polynomial-feedback");
+            assert!(
+                clearly_better(&last.heldout, &spring.free.errors, 0.02, 1.645),
+                "{seed}: {:?}",
+                spring.free
+            );
+        }
+    }
+
     /// Clearly better needs both the fall of the RMSE and its significance.
     #[test]
     fn clearly_better_needs_the_gain_and_the_z() {
