@@ -171,15 +171,19 @@ struct Reading {
 }
 
 /// How much of the verdict is judged. At the chosen split, all of it. At another split
-/// (`diagnose::search::stability`), which asks only whether play would be found there too, the comparisons
-/// whose answer the split does not move are not made again: the halves (of a fit part that overlaps the
-/// chosen one by most of its length), the play-free imitators and the rival with play (judged on the chosen
-/// split's held-out part), and the bound (`absent` is not sought: the answer there is `present` or
-/// `undetermined`).
+/// (`diagnose::search::stability`), which asks only whether play would be found there too, the halves (of a
+/// fit part that overlaps the chosen one by most of its length) and the bound are not sought again: the
+/// answer there is `present` or `undetermined`. Checking a `present` claim, the imitators and the rival with
+/// play are not fitted either (judged on the chosen split's held-out part; a neighbour that finds play more
+/// easily only lets the claim stand); checking an `absent` claim they are, so that a look-alike the chosen
+/// split told from play is not read as play at a neighbour.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Depth {
     Full,
-    PresentOnly,
+    /// Presence against the zero-gap twin and every imitator.
+    Rivals,
+    /// Presence against the zero-gap twin alone.
+    Twin,
 }
 
 /// The verdict on play for the final model `last` of a diagnosis on problem `p`.
@@ -209,12 +213,12 @@ pub(crate) fn assess(p: &Problem, last: &EffectModel, depth: Depth) -> BacklashS
 
 /// The model the verdict stands on, the play-free models it is judged against and, where it is not the
 /// final model `first`, why. The play-free imitators are fitted only where the gap beats its zero-gap twin;
-/// a rival with play only for the imitators the final model does not beat; neither at [`Depth::PresentOnly`].
+/// a rival with play only for the imitators the final model does not beat; neither at [`Depth::Twin`].
 fn standing(p: &Problem, first: Reading, depth: Depth) -> (Reading, Vec<PlayFree>, Option<String>) {
     let twin = play_free(p, &first.heldout, &first.model, TWIN);
     let gains = twin.as_ref().is_some_and(|t| beats(&first, t, MIN_Z));
     let mut free: Vec<PlayFree> = twin.into_iter().collect();
-    if !gains || depth == Depth::PresentOnly {
+    if !gains || depth == Depth::Twin {
         return (first, free, None);
     }
     let last = first.fitted();
@@ -493,7 +497,7 @@ impl Context<'_, '_> {
         let identified = self.identified(reasons);
         let mut halves = None;
         let present = !impossible && significant && gains && crossed && identified && {
-            self.depth == Depth::PresentOnly || {
+            self.depth != Depth::Full || {
                 halves = self.halves();
                 self.halves_agree(halves, reasons)
             }
@@ -503,12 +507,11 @@ impl Context<'_, '_> {
         }
         let friction = self.friction_reads_as_play(reasons);
         let worse = self.worse_than_its_twin(reasons);
-        let seek = self.depth == Depth::Full;
         let narrow = !gains && !significant && self.narrow_play_helps(reasons);
-        let bound = (seek && !impossible && !gains && !significant && !friction && !worse && !narrow)
-            .then(|| self.bound(reasons))
-            .flatten();
-        if let Some(b) = bound {
+        // Nothing speaks against `absent`: a bound is sought (at the chosen split only).
+        let open = self.depth == Depth::Full
+            && !(impossible || gains || significant || friction || worse || narrow);
+        if let Some(b) = open.then(|| self.bound(reasons)).flatten() {
             return self.answer(Presence::Absent, Some(b), halves);
         }
         let mut out = self.answer(Presence::Undetermined, None, halves);
@@ -530,7 +533,7 @@ impl Context<'_, '_> {
                 "a play too narrow to claim predicts the held-out part better than every play-free model".into(),
             ),
             (
-                seek && !gains && !significant && !friction && !worse && !narrow,
+                open,
                 "no bound on the play could be established (see the reasons)".into(),
             ),
             (

@@ -1,9 +1,10 @@
 //! The verdict on play judged again at the neighbouring splits of the record. A claim (`present` or
 //! `absent`) that a user can move by choosing another fit fraction is not a claim the record makes: the
 //! final model is refitted from where it ended on the fit parts of the splits [`SPLIT_STEP`] before and
-//! after the chosen one, and judged there on whether play is present (`Depth::PresentOnly`: the gap
-//! against its zero-gap twin on that split's held-out part, its significance, the reversals that cross it,
-//! friction told from it; the halves, the imitators and the bound are the chosen split's). Where a neighbour
+//! after the chosen one, and judged there on whether play is present (the gap against its zero-gap twin on
+//! that split's held-out part, and against the play-free imitators where the claim is `absent`, its
+//! significance, the reversals that cross it, friction told from it; the halves and the bound are the
+//! chosen split's: `Depth`). Where a neighbour
 //! contradicts the claim (`present` needs `present` at every split, `absent` no `present` at any) the answer
 //! is `undetermined`, with every split's verdict in the reasons. An `undetermined` answer claims nothing and
 //! is not re-judged.
@@ -43,9 +44,13 @@ pub(crate) fn over_splits(
     if first.presence == Presence::Undetermined {
         return first;
     }
+    let depth = match first.presence {
+        Presence::Absent => Depth::Rivals,
+        _ => Depth::Twin,
+    };
     let others: Vec<SplitVerdict> = neighbours(fraction)
         .par_iter()
-        .map(|&f| at_split(p, last, f))
+        .map(|&f| at_split(p, last, f, depth))
         .collect();
     let own = SplitVerdict {
         fit_fraction: fraction,
@@ -61,7 +66,7 @@ pub(crate) fn over_splits(
 
 /// The verdict at the fit fraction `f`: the final model refitted from where it ended on that split's fit
 /// part (its parameters keep their meaning: the time scale of drifts is the original split's), judged.
-fn at_split(p: &Problem, last: &EffectModel, f: f64) -> SplitVerdict {
+fn at_split(p: &Problem, last: &EffectModel, f: f64, depth: Depth) -> SplitVerdict {
     (p.progress)(&format!("judging the play again at fit fraction {f:.2}"));
     let q = p.resplit(fit_len(p.u.len(), f));
     let start = last.deterministic();
@@ -74,7 +79,7 @@ fn at_split(p: &Problem, last: &EffectModel, f: f64) -> SplitVerdict {
             undecided_by: vec!["the final model could not be refitted on this fit part".into()],
         };
     };
-    let s = presence::assess(&q, &m, Depth::PresentOnly);
+    let s = presence::assess(&q, &m, depth);
     SplitVerdict {
         fit_fraction: f,
         presence: s.presence,
@@ -171,15 +176,19 @@ mod tests {
         let (u, y, m) = judged_record(0.2, 0.3, 1.5);
         let p = Problem::new(&u, &y, 1400, LmOptions::default());
         let full = presence::assess(&p, &m, Depth::Full);
-        let near = presence::assess(&p, &m, Depth::PresentOnly);
+        let near = presence::assess(&p, &m, Depth::Twin);
+        let rivals = presence::assess(&p, &m, Depth::Rivals);
         assert_eq!(full.presence, Presence::Present, "{:?}", full.reasons);
         assert_eq!(near.presence, Presence::Present, "{:?}", near.reasons);
-        assert!(full.halves.is_some() && near.halves.is_none());
-        assert!(full.play_free.len() > 1 && near.play_free.len() == 1);
+        assert_eq!(rivals.presence, Presence::Present, "{:?}", rivals.reasons);
+        assert!(full.halves.is_some() && near.halves.is_none() && rivals.halves.is_none());
+        assert!(near.play_free.len() == 1);
+        assert_eq!(rivals.play_free.len(), full.play_free.len());
+        assert!(full.play_free.len() > 1);
         let (u, y, m) = judged_record(0.0, 0.0, 1.0);
         let p = Problem::new(&u, &y, 1400, LmOptions::default());
         let full = presence::assess(&p, &m, Depth::Full);
-        let near = presence::assess(&p, &m, Depth::PresentOnly);
+        let near = presence::assess(&p, &m, Depth::Rivals);
         assert_eq!(full.presence, Presence::Absent, "{:?}", full.reasons);
         assert_eq!(near.presence, Presence::Undetermined, "{:?}", near.reasons);
         assert!(near.play_bound.is_none());
