@@ -215,6 +215,104 @@ mod tests {
     use crate::plant::PlantParams;
     use crate::plant::effects::{Effects, simulate_with_effects};
 
+    /// Finite coefficients only: a fit's step to a non-finite one is refused before it is simulated. One
+    /// structure more than the current block: the log of two alternatives.
+    #[test]
+    fn validity_and_the_structure_count() {
+        let base = paper_base();
+        assert!(PolynomialFeedback.valid(&extension(0.1, -0.05, 1.0), &base));
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            for ext in [
+                extension(bad, 0.0, 1.0),
+                extension(0.0, bad, 1.0),
+                extension(0.0, 0.0, bad),
+            ] {
+                assert!(!PolynomialFeedback.valid(&ext, &base), "{:?}", ext.theta);
+            }
+        }
+        assert_eq!(PolynomialFeedback.structure_penalty(), 2f64.ln());
+    }
+
+    /// The bench's draw: a stiffening cubic (negative) taking 8..16% of x at two standard deviations of the
+    /// clean x over both taps, no quadratic term, said in words.
+    #[test]
+    fn the_draw_is_a_stiffening_cubic() {
+        use rand_core::SeedableRng;
+        let x0 = input(500);
+        let mut rig = Rig {
+            params: PlantParams::PAPER,
+            effects: Effects::default(),
+            snr: 30.0,
+            fixed_noise: None,
+            w0: x0.clone(),
+            x0: x0.clone(),
+            u: x0.clone(),
+            n: 500,
+        };
+        let mut d = Draw(rand_chacha::ChaCha8Rng::seed_from_u64(3));
+        let words = PolynomialFeedback.draw(&mut rig, &mut d);
+        let f = rig.effects.polynomial_feedback.expect("switched on");
+        let s = 2.0 * std_dev(&x0);
+        let share = -f.cubic * (1.0 + f.lag2) * s * s;
+        assert!((0.08..0.16).contains(&share), "{share}");
+        assert!(f.quadratic == 0.0 && (0.5..1.0).contains(&f.lag2), "{f:?}");
+        assert!(
+            words.starts_with(&format!("cubic feedback taking {:.0}%", 100.0 * share)),
+            "{words}"
+        );
+    }
+
+    /// The evidence: the plain model's residual and what the feedback adds, both against x_hat(k-1); where
+    /// the model with the feedback is the record, the two are the same curve (RMS distance 0), and the
+    /// figure is drawn.
+    #[test]
+    fn the_evidence_compares_the_residual_with_what_the_feedback_adds() {
+        let dir = std::env::temp_dir().join(format!("pf-evidence-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("evidence.png");
+        let n = 300;
+        let u = input(n);
+        let plain = EffectModel::plain(paper_base());
+        let declared = plain.simulate(&u, Rest::ZERO, n, 1e9).unwrap();
+        let with = plain.with(extension(0.0, -0.02, 1.0));
+        let y = with.simulate(&u, Rest::ZERO, n, 1e9).unwrap().y;
+        let e0: Vec<f64> = y.iter().zip(&declared.y).map(|(a, b)| a - b).collect();
+        let (e1, t) = (vec![0.0; n], (0..n).map(|k| k as f64).collect::<Vec<_>>());
+        let fig = Figure {
+            path: &path,
+            test: "none",
+            n,
+            n_fit: 210,
+            t: &t,
+            u: &u,
+            y: &y,
+            columns: ["t", "u", "y"],
+            declared: &declared,
+            plain_label: "plain",
+            e0: &e0,
+            e1: &e1,
+            e1_pred: None,
+            after_label: "plain + polynomial-feedback",
+            model: &with,
+            output: &y,
+            lags: 10,
+        };
+        let caption = PolynomialFeedback.evidence(&fig).unwrap();
+        let distance: f64 = caption
+            .split("RMS distance between the two: ")
+            .nth(1)
+            .and_then(|r| r.split(')').next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("{caption}"));
+        assert!(distance.abs() < 1e-9, "{caption}");
+        assert!(
+            e0.iter().any(|e| e.abs() > 0.01),
+            "the feedback moves the output"
+        );
+        assert!(path.metadata().unwrap().len() > 1000);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     /// The model with the feedback is the plant with the bench's feedback, sample for sample; no feedback
     /// is the plain model; a non-finite coefficient does not run.
     #[test]
@@ -326,5 +424,13 @@ mod tests {
         let top = EffectModel::plain(m.base.with_orders(MAX_ORDER, 0, 1));
         let p = PolynomialFeedback.plan(&context(&top, &y, &y, &y)).unwrap();
         assert_eq!(p.alternatives.len(), 1);
+        // At an output scale of 2 the cubic starts are c / (2^2 (1 + 1)); a record with no output spread
+        // gets only the start without feedback.
+        let cubic: Vec<f64> = feedback_starts(&m, 2.0)
+            .iter()
+            .map(|s| s.exts[0].theta[1])
+            .collect();
+        assert_eq!(cubic, [0.0, -0.00125, -0.00625, 0.00125]);
+        assert_eq!(feedback_starts(&m, 0.0).len(), 1);
     }
 }
