@@ -647,19 +647,7 @@ mod tests {
             };
         let with = |a, b| with_offset(a, b, 0.0);
         let u = [1.0, 1.0, 0.0, 0.0, 0.0];
-        let run = |ext: &PlantExtensions| {
-            let mut plant = Plant::with_extensions(p, ext).unwrap();
-            let xs: Vec<f64> = u
-                .iter()
-                .map(|&uk| {
-                    let x = plant.output().x;
-                    plant.advance(uk);
-                    x
-                })
-                .collect();
-            assert!(plant.check().is_ok());
-            xs
-        };
+        let run = |ext: &PlantExtensions| block_outputs(p, ext, &u);
         let xs = run(&with([-0.9, 0.0, 0.0, 0.0], [0.1, 0.0, 0.0, 0.0, 0.0]));
         let want = [0.0, 1.0, 1.5, 1.35, 1.215];
         for (x, w) in xs.iter().zip(want) {
@@ -684,16 +672,37 @@ mod tests {
         // An unstable falling set, and the effect on a continuous block, are refused by name.
         let err = Plant::with_extensions(p, &with([-1.5, 0.0, 0.0, 0.0], p.arx.b)).unwrap_err();
         assert_eq!(err.name, "a1_fall");
-        let mut cont = with(p.arx.a, p.arx.b);
-        cont.continuous = Some((
+        let cont = on_a_continuous_block(with(p.arx.a, p.arx.b));
+        let err = Plant::with_extensions(p, &cont).unwrap_err();
+        assert!(err.reason.contains("continuous"), "{err}");
+    }
+
+    /// The linear block's output before each input of `u` is applied, the plant built with `ext` (its
+    /// state checked at the end).
+    fn block_outputs(p: PlantParams, ext: &PlantExtensions, u: &[f64]) -> Vec<f64> {
+        let mut plant = Plant::with_extensions(p, ext).unwrap();
+        let xs = u
+            .iter()
+            .map(|&uk| {
+                let x = plant.output().x;
+                plant.advance(uk);
+                x
+            })
+            .collect();
+        assert!(plant.check().is_ok());
+        xs
+    }
+
+    /// `ext` with the linear block replaced by a continuous one, 1 / (s + 1) sampled at 0.1.
+    fn on_a_continuous_block(mut ext: PlantExtensions) -> PlantExtensions {
+        ext.continuous = Some((
             TransferFunction {
                 num: vec![1.0],
                 den: vec![1.0, 1.0],
             },
             0.1,
         ));
-        let err = Plant::with_extensions(p, &cont).unwrap_err();
-        assert!(err.reason.contains("continuous"), "{err}");
+        ext
     }
 
     /// x(k) = 0.5 x(k-1) + u(k-1) + phi(x(k-1)) + 0.5 phi(x(k-2)), phi(x) = 0.2 x^2 - 0.1 x^3, u = 1, 1, 0:
@@ -722,19 +731,7 @@ mod tests {
             ..PlantExtensions::default()
         };
         let u = [1.0, 1.0, 0.0, 0.0];
-        let run = |ext: &PlantExtensions| {
-            let mut plant = Plant::with_extensions(p, ext).unwrap();
-            let xs: Vec<f64> = u
-                .iter()
-                .map(|&uk| {
-                    let x = plant.output().x;
-                    plant.advance(uk);
-                    x
-                })
-                .collect();
-            assert!(plant.check().is_ok());
-            xs
-        };
+        let run = |ext: &PlantExtensions| block_outputs(p, ext, &u);
         let xs = run(&with(0.2, -0.1));
         for (x, w) in xs.iter().zip([0.0, 1.0, 1.6, 0.9524]) {
             assert!((x - w).abs() < 1e-12, "{xs:?}");
@@ -745,14 +742,7 @@ mod tests {
             .map(|o| o.x)
             .collect();
         assert_eq!(run(&with(0.0, 0.0)), plain);
-        let mut cont = with(0.0, -0.1);
-        cont.continuous = Some((
-            TransferFunction {
-                num: vec![1.0],
-                den: vec![1.0, 1.0],
-            },
-            0.1,
-        ));
+        let cont = on_a_continuous_block(with(0.0, -0.1));
         let err = Plant::with_extensions(p, &cont).unwrap_err();
         assert_eq!(err.name, "polynomial feedback");
         let bad = with(f64::NAN, 0.0);

@@ -93,10 +93,8 @@ impl<'a> Problem<'a> {
     /// The same record with a shorter fit part (samples `0..n_fit`), for choosing on the rest of it.
     pub fn shortened(&self, n_fit: usize) -> Self {
         Self {
-            n_fit,
-            n_explore: n_fit.min(EXPLORE_SAMPLES),
             time_scale: n_fit as f64,
-            ..self.clone()
+            ..self.resplit(n_fit)
         }
     }
 

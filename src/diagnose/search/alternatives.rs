@@ -204,6 +204,26 @@ mod tests {
     use crate::diagnose::fit::structure::{Structure, fit_len};
     use crate::stats::quantile;
 
+    /// The paper model's structure fitted plain on `p` (as the final model, with its held-out errors) and
+    /// the play-free imitators judged against it.
+    fn plain_and_imitators(p: &Problem) -> (Fitted, Vec<Imitator>) {
+        let structure = Structure {
+            na: 2,
+            nb: 0,
+            delay: 1,
+        };
+        let linear = fit_linear(p, structure).unwrap();
+        let (plain, _) = fit_plain(p, structure, 3, 0, &linear).unwrap();
+        let sim = plain.simulate(p.u, p.rest, p.u.len(), p.limit).unwrap();
+        let last = Fitted {
+            name: "the final model".into(),
+            heldout: heldout_errors(p, &sim),
+            model: plain.clone(),
+        };
+        let found = imitators(p, &last, &sim, &plain, "zero-gap");
+        (last, found)
+    }
+
     /// On records of the paper's model (play 1.5) clipped at the median of its output, judged from
     /// the plain model (which lacks the clipping): the zero-gap model with saturation is fitted, and the
     /// rival with saturation and its gap kept predicts the held-out part better than it and keeps the play.
@@ -213,23 +233,10 @@ mod tests {
         let (u, sim) = paper_record(n);
         let top = quantile(&sim.y, 0.5).unwrap();
         let clipped: Vec<f64> = sim.y.iter().map(|v| v.min(top)).collect();
-        let structure = Structure {
-            na: 2,
-            nb: 0,
-            delay: 1,
-        };
         for seed in 0..2 {
             let y = with_noise(&clipped, 0.05, seed);
             let p = Problem::new(&u, &y, fit_len(n, 0.7), LmOptions::default());
-            let linear = fit_linear(&p, structure).unwrap();
-            let (plain, _) = fit_plain(&p, structure, 3, 0, &linear).unwrap();
-            let sim = plain.simulate(p.u, p.rest, p.u.len(), p.limit).unwrap();
-            let last = Fitted {
-                name: "the final model".into(),
-                heldout: heldout_errors(&p, &sim),
-                model: plain.clone(),
-            };
-            let found = imitators(&p, &last, &sim, &plain, "zero-gap");
+            let (last, found) = plain_and_imitators(&p);
             let clip = found
                 .iter()
                 .find(|im| im.effect == "saturation")
@@ -258,23 +265,10 @@ mod tests {
     fn polynomial_feedback_does_not_replace_a_play() {
         let n = 3000;
         let (u, sim) = paper_record(n);
-        let structure = Structure {
-            na: 2,
-            nb: 0,
-            delay: 1,
-        };
         for seed in 0..2 {
             let y = with_noise(&sim.y, 0.05, seed);
             let p = Problem::new(&u, &y, fit_len(n, 0.7), LmOptions::default());
-            let linear = fit_linear(&p, structure).unwrap();
-            let (plain, _) = fit_plain(&p, structure, 3, 0, &linear).unwrap();
-            let sim = plain.simulate(p.u, p.rest, p.u.len(), p.limit).unwrap();
-            let last = Fitted {
-                name: "the final model".into(),
-                heldout: heldout_errors(&p, &sim),
-                model: plain.clone(),
-            };
-            let found = imitators(&p, &last, &sim, &plain, "zero-gap");
+            let (last, found) = plain_and_imitators(&p);
             let spring = found
                 .iter()
                 .find(|im| im.effect == "polynomial-feedback")
