@@ -419,13 +419,16 @@ const MAX_HAC_SHARE: f64 = 0.1;
 /// [`CombinationVariance`] of `w . theta` at `theta`; `None` when the data do not determine `w . theta` (see
 /// `solve_determined`) or the point is not valid. Parameters the data do not determine are allowed when the
 /// combination does not involve them (a gap's centre that a following friction element absorbs, with its
-/// width `c1 + c2` determined).
+/// width `c1 + c2` determined), and so is a `gauge` (a direction; empty for none) the data do not determine
+/// and the caller holds where `theta` has it: the variance is then that of `w . theta` with `theta` kept off
+/// the gauge (a level a friction element does not see, at which the play of unequal slopes is read).
 pub fn combination_variance<R: Residuals + ?Sized>(
     f: &R,
     theta: &[f64],
     typ: &[f64],
     fd_rel: f64,
     w: &[f64],
+    gauge: &[f64],
 ) -> Option<CombinationVariance> {
     let p = theta.len();
     if w.len() != p {
@@ -435,7 +438,8 @@ pub fn combination_variance<R: Residuals + ?Sized>(
     let s2 = info.s2();
     let Information { r, jac, h, .. } = info;
     let n = r.len();
-    let (v, all_determined) = solve_determined(&h, &DVector::from_column_slice(w))?;
+    let gauge = (gauge.len() == p).then(|| DVector::from_column_slice(gauge));
+    let (v, all_determined) = solve_determined(&h, &DVector::from_column_slice(w), gauge.as_ref())?;
     let classical = s2 * v.dot(&DVector::from_column_slice(w));
     // The influence of each sample on w . theta: (v . J_t) r_t.
     let score: Vec<f64> = (0..n)
@@ -462,12 +466,19 @@ const NULL_EIGEN: f64 = 1e-9;
 /// Share of the combination's weights that may lie in the undetermined directions (rounding) for it to
 /// count as determined.
 const NULL_SHARE: f64 = 1e-6;
+/// How far (unit vectors) a gauge may lie from the undetermined directions and still count as one of them.
+const GAUGE_TOLERANCE: f64 = 1e-6;
 
 /// `v` with `H v = w` for the information matrix `H`, and whether `H` is positive definite (every parameter
 /// determined): by Cholesky where it is; where it is singular (directions the data do not determine), by the
 /// pseudo-inverse, provided `w` has no part in those directions (then `w . theta` is determined even though
-/// `theta` is not, and `v` gives its variance); `None` otherwise.
-fn solve_determined(h: &DMatrix<f64>, w: &DVector<f64>) -> Option<(DVector<f64>, bool)> {
+/// `theta` is not, and `v` gives its variance) other than along `gauge` where the gauge is one of them (the
+/// caller holds theta there); `None` otherwise.
+fn solve_determined(
+    h: &DMatrix<f64>,
+    w: &DVector<f64>,
+    gauge: Option<&DVector<f64>>,
+) -> Option<(DVector<f64>, bool)> {
     if let Some(c) = h.clone().cholesky() {
         return Some((c.solve(w), true));
     }
@@ -477,17 +488,25 @@ fn solve_determined(h: &DMatrix<f64>, w: &DVector<f64>) -> Option<(DVector<f64>,
         return None;
     }
     let mut v = DVector::zeros(w.len());
-    let mut null = 0.0;
+    let mut null_w = DVector::zeros(w.len());
+    let mut null_g = DVector::zeros(w.len());
+    let g = gauge.and_then(|g| g.try_normalize(0.0));
     for (k, lambda) in eig.eigenvalues.iter().enumerate() {
         let q = eig.eigenvectors.column(k);
-        let along = q.dot(w);
         if *lambda > NULL_EIGEN * top {
-            v += q * (along / lambda);
+            v += q * (q.dot(w) / lambda);
         } else {
-            null += along * along;
+            null_w += q * q.dot(w);
+            if let Some(g) = &g {
+                null_g += q * q.dot(g);
+            }
         }
     }
-    (null <= (NULL_SHARE * w.norm()).powi(2)).then_some((v, false))
+    // A gauge that lies in the undetermined directions takes its part of w with it.
+    if let Some(g) = g.filter(|g| (null_g - g).norm() <= GAUGE_TOLERANCE) {
+        null_w -= &g * null_w.dot(&g);
+    }
+    (null_w.norm() <= NULL_SHARE * w.norm()).then_some((v, false))
 }
 
 /// The Bartlett window for residuals `r`: out to the first lag where their autocorrelation falls below
@@ -557,7 +576,8 @@ mod tests {
             };
             let lm = levenberg_marquardt(&f, &[0.0, 0.0], &[1.0, 1.0], &[], &LmOptions::default())
                 .unwrap();
-            let v = combination_variance(&f, &lm.theta, &[1.0, 1.0], 1e-6, &[0.0, 1.0]).unwrap();
+            let v =
+                combination_variance(&f, &lm.theta, &[1.0, 1.0], 1e-6, &[0.0, 1.0], &[]).unwrap();
             let tm = t.iter().sum::<f64>() / n as f64;
             let sxx: f64 = t.iter().map(|v| (v - tm) * (v - tm)).sum();
             (v, lm.cost / (n - 2) as f64 / sxx)
@@ -573,16 +593,23 @@ mod tests {
         assert!(runs.lags >= 10, "{runs:?}");
     }
 
-    /// Two parameters that enter only as their sum (y = (a + b) t): their sum's variance is that of a
-    /// single slope, by the pseudo-inverse, while their difference is undetermined; a parameter the
-    /// residuals ignore does not hide the others.
-    #[test]
-    fn a_determined_combination_of_undetermined_parameters_has_a_variance() {
+    /// y = 3 t on 100 samples of t in [0, 1), with a small deterministic error.
+    fn slope_record() -> (Vec<f64>, Vec<f64>) {
         let n = 100;
         let t: Vec<f64> = (0..n).map(|k| k as f64 / n as f64).collect();
         let y: Vec<f64> = (0..n)
             .map(|k| 3.0 * t[k] + if k % 3 == 0 { 0.1 } else { -0.05 })
             .collect();
+        (t, y)
+    }
+
+    /// Two parameters that enter only as their sum (y = (a + b) t): their sum's variance is that of a
+    /// single slope, by the pseudo-inverse, while their difference is undetermined; a parameter the
+    /// residuals ignore does not hide the others.
+    #[test]
+    fn a_determined_combination_of_undetermined_parameters_has_a_variance() {
+        let (t, y) = slope_record();
+        let n = t.len();
         let f = |th: &[f64], out: &mut Vec<f64>| {
             out.clear();
             out.extend((0..n).map(|k| y[k] - (th[0] + th[1]) * t[k]));
@@ -590,14 +617,14 @@ mod tests {
         };
         let theta = [1.0, 2.0, 7.0];
         let typ = [1.0; 3];
-        let sum = combination_variance(&f, &theta, &typ, 1e-6, &[1.0, 1.0, 0.0]).unwrap();
+        let sum = combination_variance(&f, &theta, &typ, 1e-6, &[1.0, 1.0, 0.0], &[]).unwrap();
         assert!(!sum.all_determined);
         let single = |th: &[f64], out: &mut Vec<f64>| {
             out.clear();
             out.extend((0..n).map(|k| y[k] - th[0] * t[k]));
             true
         };
-        let one = combination_variance(&single, &[3.0], &[1.0], 1e-6, &[1.0]).unwrap();
+        let one = combination_variance(&single, &[3.0], &[1.0], 1e-6, &[1.0], &[]).unwrap();
         assert!(one.all_determined);
         // s^2 = cost / (n - p) counts three parameters against one.
         let dof = (n - 1) as f64 / (n - 3) as f64;
@@ -605,9 +632,39 @@ mod tests {
             (sum.classical / one.classical / dof - 1.0).abs() < 1e-6,
             "{sum:?} {one:?}"
         );
-        assert!(combination_variance(&f, &theta, &typ, 1e-6, &[1.0, -1.0, 0.0]).is_none());
-        assert!(combination_variance(&f, &theta, &typ, 1e-6, &[0.0, 0.0, 1.0]).is_none());
+        assert!(combination_variance(&f, &theta, &typ, 1e-6, &[1.0, -1.0, 0.0], &[]).is_none());
+        assert!(combination_variance(&f, &theta, &typ, 1e-6, &[0.0, 0.0, 1.0], &[]).is_none());
         assert!(covariance(&f, &theta, &typ, 1e-6).is_none());
+    }
+
+    /// A gauge the data do not determine, held by the caller, takes its part of the combination: th[0] alone
+    /// is undetermined (only th[0] + th[1] is), but with th[0] - th[1] held it is half the sum, with a
+    /// quarter of the sum's variance; a gauge that is determined, or not the undetermined direction the
+    /// combination has a part in, changes nothing.
+    #[test]
+    fn a_held_gauge_determines_the_rest() {
+        let (t, y) = slope_record();
+        let n = t.len();
+        let f = |th: &[f64], out: &mut Vec<f64>| {
+            out.clear();
+            out.extend((0..n).map(|k| y[k] - (th[0] + th[1]) * t[k] - th[2]));
+            true
+        };
+        let (theta, typ) = ([1.0, 2.0, 0.0], [1.0; 3]);
+        let var = |w: &[f64], gauge: &[f64]| combination_variance(&f, &theta, &typ, 1e-6, w, gauge);
+        let sum = var(&[1.0, 1.0, 0.0], &[]).unwrap();
+        assert!(var(&[1.0, 0.0, 0.0], &[]).is_none());
+        let first = var(&[1.0, 0.0, 0.0], &[2.0, -2.0, 0.0]).unwrap();
+        assert!(!first.all_determined);
+        assert!(
+            (first.classical / sum.classical - 0.25).abs() < 1e-6,
+            "{first:?} {sum:?}"
+        );
+        let held = var(&[1.0, -1.0, 0.0], &[1.0, -1.0, 0.0]).unwrap();
+        assert!(held.classical < 1e-12 * sum.classical, "{held:?}");
+        assert!(var(&[1.0, 0.0, 0.0], &[1.0, 1.0, 0.0]).is_none());
+        assert!(var(&[1.0, 0.0, 0.0], &[0.0, 0.0, 1.0]).is_none());
+        assert!(var(&[1.0, 0.0, 0.0], &[1.0, -1.0]).is_none());
     }
 
     #[test]

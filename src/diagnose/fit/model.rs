@@ -458,6 +458,17 @@ impl EffectModel {
         w
     }
 
+    /// The direction over the packed parameters that moves the output's level by one and nothing else on
+    /// the borders (c1 by 1/m1, c2 by -1/m2: the play of unequal slopes is read at a level, see
+    /// `Problem::play_variance`); a friction element after the borders does not see it.
+    pub fn level_weights(&self, time_scale: f64) -> Vec<f64> {
+        let mut w = vec![0.0; self.pack(time_scale).len()];
+        let [_, c1, c2] = self.gap_entries();
+        w[c1] = 1.0 / self.base.m1;
+        w[c2] = -1.0 / self.base.m2;
+        w
+    }
+
     /// The deterministic part: the model without a noise model.
     pub fn deterministic(&self) -> Self {
         Self {
