@@ -91,12 +91,22 @@ fn at_split(p: &Problem, last: &EffectModel, f: f64, depth: Depth) -> SplitVerdi
 /// Whether the verdict `other` at another split leaves the claim `own` standing: `present` needs `present`
 /// there too; `absent` only needs no `present` there (no bound is sought at a neighbour: one that a shorter
 /// held-out or fit part cannot establish contradicts nothing, and required, it lost 64 of 238 play-free
-/// records, none of them a play).
-fn agrees(own: Presence, other: Presence) -> bool {
-    match own {
-        Presence::Absent => other != Presence::Present,
-        _ => other == own,
-    }
+/// records, none of them a play). A split the final model could not be refitted on says nothing either way
+/// (see [`silent`]).
+fn agrees(own: Presence, other: &SplitVerdict) -> bool {
+    silent(other)
+        || match own {
+            Presence::Absent => other.presence != Presence::Present,
+            _ => other.presence == own,
+        }
+}
+
+/// Whether the final model could not be refitted at that split (it has no play there). Such a split is no
+/// evidence: a model whose memory zone is inverted on some samples is refused where those samples make a
+/// larger share of a shorter fit part (on 7 of the 116 countable play records of the confusion table a
+/// neighbour refused the final model so while the other agreed).
+fn silent(s: &SplitVerdict) -> bool {
+    !s.play.is_finite()
 }
 
 /// `first` with the splits' verdicts kept and said; `undetermined` where one contradicts it (see
@@ -119,7 +129,11 @@ fn judged(mut first: BacklashSupport, splits: Vec<SplitVerdict>) -> BacklashSupp
         .collect::<Vec<_>>()
         .join(", ");
     let same = splits.iter().all(|s| s.presence == first.presence);
-    let stable = splits.iter().all(|s| agrees(first.presence, s.presence));
+    // `present` needs at least one other split judged (the chosen one is always there); `absent` needs
+    // only that none finds play.
+    let judged_elsewhere =
+        first.presence == Presence::Absent || splits.iter().filter(|s| !silent(s)).count() > 1;
+    let stable = judged_elsewhere && splits.iter().all(|s| agrees(first.presence, s));
     first.splits = splits;
     if stable {
         first.reasons.push(if same {
@@ -129,10 +143,17 @@ fn judged(mut first: BacklashSupport, splits: Vec<SplitVerdict>) -> BacklashSupp
         });
         return first;
     }
-    let why = format!(
-        "the verdict moves with the split of the record ({said}): the final model refitted on another fit \
-         part is judged otherwise, so the record does not settle it"
-    );
+    let why = if judged_elsewhere {
+        format!(
+            "the verdict moves with the split of the record ({said}): the final model refitted on another \
+             fit part is judged otherwise, so the record does not settle it"
+        )
+    } else {
+        format!(
+            "the verdict could not be judged at any other split of the record ({said}): the final model \
+             could not be refitted there, so nothing says the record settles it"
+        )
+    };
     first.reasons.push(why.clone());
     first.presence = Presence::Undetermined;
     first.supported = false;
@@ -290,20 +311,40 @@ mod tests {
         );
     }
 
+    /// A split the final model cannot be refitted on is silent: beside one that agrees the claim stands;
+    /// with no other split judged `present` does not, and the answer says why, while `absent` (which only
+    /// needs no split to find play) does.
     #[test]
     fn a_model_that_cannot_be_refitted_elsewhere_is_said_so() {
-        let mut other = at(0.8, Presence::Undetermined);
-        other.play = f64::NAN;
-        let s = judged(
-            claim(Presence::Present),
-            vec![at(0.7, Presence::Present), other],
-        );
+        let mut silent = at(0.8, Presence::Undetermined);
+        silent.play = f64::NAN;
+        for own in [Presence::Present, Presence::Absent] {
+            let s = judged(claim(own), vec![at(0.6, own), at(0.7, own), silent.clone()]);
+            assert_eq!(s.presence, own);
+            assert!(
+                s.reasons
+                    .last()
+                    .unwrap()
+                    .contains("undetermined at 0.80 (play not refitted)")
+            );
+        }
+        let alone = |own| judged(claim(own), vec![at(0.7, own), silent.clone()]);
+        assert_eq!(alone(Presence::Absent).presence, Presence::Absent);
+        let s = alone(Presence::Present);
         assert_eq!(s.presence, Presence::Undetermined);
         assert!(
-            s.verdict
-                .contains("undetermined at 0.80 (play not refitted)"),
+            s.verdict.contains("could not be judged at any other split"),
             "{}",
             s.verdict
         );
+        let s = judged(
+            claim(Presence::Present),
+            vec![
+                at(0.6, Presence::Absent),
+                at(0.7, Presence::Present),
+                silent,
+            ],
+        );
+        assert_eq!(s.presence, Presence::Undetermined);
     }
 }
