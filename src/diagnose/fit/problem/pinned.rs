@@ -43,12 +43,12 @@ impl Problem<'_> {
     }
 
     /// The play of `m` refitted to the fit part's samples `range` alone, with its sandwich standard error
-    /// (infinite where the range does not determine it). The model is simulated over the whole fit part, so
-    /// that a range that starts mid-record starts in the state the record left, not at rest, and so that
-    /// the model is judged valid as every fit judges it (the share of samples its memory zone may be
-    /// inverted on is a share of the fit part: over the first half alone, a model the fit accepted could be
-    /// refused at its start); its linear block is held at `m`'s and everything else refitted to the range's
-    /// simulation errors. `None` when the refit fails.
+    /// (infinite where the range does not determine it). The model is simulated from the record's start, so
+    /// that a range that starts mid-record starts in the state the record left, not at rest, to the range's
+    /// end, or over the whole fit part where `m` is refused there (the share of samples its memory zone may
+    /// be inverted on is a share of the samples simulated: over the first half alone, a model the fit
+    /// accepted can be refused at its start); its linear block is held at `m`'s and everything else refitted
+    /// to the range's simulation errors. `None` when the refit fails.
     pub fn range_play(&self, m: &EffectModel, range: Range<usize>) -> Option<(f64, f64)> {
         let ts = self.time_scale;
         let full = m.pack(ts);
@@ -61,9 +61,12 @@ impl Problem<'_> {
         );
         let unpack = |th: &[f64]| m.unpack(&pins.expand(th), ts);
         let end = range.end.min(self.n_fit);
+        let accepted =
+            SCRATCH.with_borrow_mut(|s| m.simulate_into(self.u, self.rest, end, self.limit, s));
+        let horizon = if accepted { end } else { self.n_fit };
         let f = |th: &[f64], out: &mut Vec<f64>| {
             SCRATCH.with_borrow_mut(|s| {
-                let ok = unpack(th).simulate_into(self.u, self.rest, self.n_fit, self.limit, s);
+                let ok = unpack(th).simulate_into(self.u, self.rest, horizon, self.limit, s);
                 if ok {
                     let (y, sim) = (&self.y[range.start..end], &s.y[range.start..end]);
                     out.extend(y.iter().zip(sim).map(|(a, b)| a - b));
