@@ -103,8 +103,8 @@ fn agrees(own: Presence, other: &SplitVerdict) -> bool {
 
 /// Whether the final model could not be refitted at that split (it has no play there). Such a split is no
 /// evidence: a model whose memory zone is inverted on some samples is refused where those samples make a
-/// larger share of a shorter fit part (on 7 of the 116 countable play records of the confusion table a
-/// neighbour refused the final model so while the other agreed).
+/// larger share of a shorter fit part (8 of the 108 countable play records of the confusion table found
+/// `present` have a neighbour that refused the final model so, beside one that agrees).
 fn silent(s: &SplitVerdict) -> bool {
     !s.play.is_finite()
 }
