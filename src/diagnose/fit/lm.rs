@@ -635,6 +635,21 @@ mod tests {
         assert!(combination_variance(&f, &theta, &typ, 1e-6, &[1.0, -1.0, 0.0], &[]).is_none());
         assert!(combination_variance(&f, &theta, &typ, 1e-6, &[0.0, 0.0, 1.0], &[]).is_none());
         assert!(covariance(&f, &theta, &typ, 1e-6).is_none());
+        // What counts as undetermined is relative to the best-determined direction: the same record in
+        // other units (residuals 1e-4 and 1e4 times as large) gives the same variance.
+        for scale in [1e-4, 1e4] {
+            let scaled = |th: &[f64], out: &mut Vec<f64>| {
+                f(th, out);
+                out.iter_mut().for_each(|v| *v *= scale);
+                true
+            };
+            let w = [1.0, 1.0, 0.0];
+            let v = combination_variance(&scaled, &theta, &typ, 1e-6, &w, &[]).unwrap();
+            assert!(
+                (v.classical / sum.classical - 1.0).abs() < 1e-6,
+                "{scale}: {v:?}"
+            );
+        }
     }
 
     /// A gauge the data do not determine, held by the caller, takes its part of the combination: th[0] alone
