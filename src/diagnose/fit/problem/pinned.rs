@@ -109,7 +109,6 @@ impl Problem<'_> {
 mod tests {
     use super::*;
     use crate::diagnose::fit::lm::LmOptions;
-    use crate::diagnose::fit::model::Rest;
     use crate::diagnose::fit::model::tests::{paper_base, paper_record, with_noise};
 
     /// The paper's plant (m1 = 1, m2 = 1.5: 1/m1 - 1/m2 = 1/3) at noise 0.05. The same record with its output
@@ -175,34 +174,5 @@ mod tests {
         let mut unstable = whole.clone();
         unstable.base.a = vec![-2.5, 0.0];
         assert!(p.range_play(&unstable, n / 2..n).is_none());
-    }
-
-    /// The paper's plant (m1 = 1, m2 = 1.5) with a series friction element after it, at noise 0.05, its
-    /// input 5 above the paper's (at rest there, on a border): the element sees only the changes of the
-    /// borders' output, so no half determines its level, nor the play of unequal slopes read at a level.
-    /// Held at the whole model's level, each half still gives the play with a standard error, within 3 of
-    /// them of the truth.
-    #[test]
-    fn a_half_after_friction_reads_the_play_at_the_whole_models_level() {
-        let n = 3000;
-        let (u, _) = paper_record(n);
-        let u: Vec<f64> = u.iter().map(|v| v + 5.0).collect();
-        let truth =
-            EffectModel::plain(paper_base()).with(crate::diagnose::effects::friction::extension(
-                2.0,
-                2.0,
-                crate::plant::effects::FrictionForm::Series,
-            ));
-        let sim = truth.simulate(&u, Rest(u[0]), n, 1e6).unwrap();
-        let y = with_noise(&sim.y, 0.05, 3);
-        let p = Problem {
-            rest: Rest(u[0]),
-            ..Problem::new(&u, &y, n, LmOptions::default())
-        };
-        for range in [0..n / 2, n / 2..n] {
-            let (play, se) = p.range_play(&truth, range.clone()).unwrap();
-            assert!(se.is_finite() && se > 0.0, "{range:?}: {se}");
-            assert!((play - 1.5).abs() < 3.0 * se, "{range:?}: {play} +/- {se}");
-        }
     }
 }
