@@ -102,9 +102,10 @@ fn agrees(own: Presence, other: &SplitVerdict) -> bool {
 }
 
 /// Whether the final model could not be refitted at that split (it has no play there). Such a split is no
-/// evidence: a model whose memory zone is inverted on some samples is refused where those samples make a
-/// larger share of a shorter fit part (8 of the 108 countable play records of the confusion table found
-/// `present` have a neighbour that refused the final model so, beside one that agrees).
+/// evidence: the fits' strict simulation refuses, as a start, a model it accepted on the chosen fit part
+/// where inverted samples make a larger share of a shorter one, or where the added samples of a longer one
+/// move it against x (8 of the 108 countable play records of the confusion table found `present` have a
+/// neighbour that refused the final model so, beside one that agrees).
 fn silent(s: &SplitVerdict) -> bool {
     !s.play.is_finite()
 }
