@@ -120,10 +120,10 @@ fn judged(mut first: BacklashSupport, splits: Vec<SplitVerdict>) -> BacklashSupp
                 "{} at {:.2} (play {})",
                 s.presence.word(),
                 s.fit_fraction,
-                if s.play.is_finite() {
-                    g(s.play)
-                } else {
+                if silent(s) {
                     "not refitted".into()
+                } else {
+                    g(s.play)
                 }
             )
         })

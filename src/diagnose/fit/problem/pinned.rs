@@ -94,11 +94,14 @@ impl Problem<'_> {
     /// sample's noise, whose variance is the fit part's mean square simulation error; the term is added to
     /// both variances (it holds for white residuals too). Without it, on random plants with play at a
     /// noise of 1/30 of the output's spread, the play's spread over noise draws was three times its
-    /// standard error (`examples/play_coverage.rs --plant 48`).
+    /// standard error (`examples/play_coverage.rs --plant 48`). The level's direction is
+    /// [`EffectModel::level_weights`], the one the variance is held at where the fit part leaves it free.
     pub fn play_variance(&self, m: &EffectModel) -> Option<CombinationVariance> {
-        let mut v = self.combination_variance(m, &m.play_weights(self.time_scale))?;
+        let play = m.play_weights(self.time_scale);
+        let mut v = self.combination_variance(m, &play)?;
         let level = self.cost(m, Objective::Simulation)? / self.n_fit as f64;
-        let tilt = 1.0 / m.base.m1 - 1.0 / m.base.m2;
+        let along = m.level_weights(self.time_scale);
+        let tilt: f64 = play.iter().zip(&along).map(|(a, b)| a * b).sum();
         v.classical += tilt * tilt * level;
         v.sandwich += tilt * tilt * level;
         Some(v)
@@ -151,6 +154,7 @@ mod tests {
         parallel.base.m2 = 1.0;
         assert_eq!(added(&parallel), [0.0, 0.0]);
     }
+
     /// The paper's plant (play 1.5) at noise 0.05: each half of the record, refitted from the whole record's
     /// fit on its own samples (the second half in the state the first left), finds the play within 3 of its
     /// standard errors of 1.5. The halves' plays differ from the whole fit's: they are refitted, not copied.
