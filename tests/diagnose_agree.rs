@@ -100,6 +100,13 @@ fn check_play(text: &str, report: &str, b: &Value) {
     let (play, se) = (f(&b["play"]), b["play_se"].as_f64());
     match presence {
         "absent" => assert_eq!(after(headline, "none above "), number(f(&b["play_bound"]))),
+        // A gap of zero or less is said as the fit's gap, never as a play's size.
+        _ if play <= 0.0 => {
+            assert_eq!(after(headline, "c1 + c2 is "), number(play), "{headline}");
+            assert!(headline.contains("which is no play"), "{headline}");
+            let se = se.map_or("unknown".into(), number);
+            assert_eq!(after(headline, "+/- "), se, "{headline}");
+        }
         _ => {
             assert_eq!(after(headline, ", "), number(play), "{headline}");
             assert_eq!(

@@ -407,8 +407,9 @@ pub struct CombinationVariance {
     pub sandwich: f64,
     /// The Bartlett window's lags.
     pub lags: usize,
-    /// Whether the record determines every parameter (`J^T J` positive definite); when not, the
-    /// combination is still determined (else there would be no variance), through the pseudo-inverse.
+    /// Whether the record determines every parameter (`J^T J` positive definite) but for the gauge the
+    /// caller holds, if that is the one direction it does not determine; when not, the combination is
+    /// still determined (else there would be no variance), through the pseudo-inverse.
     pub all_determined: bool,
 }
 
@@ -469,8 +470,8 @@ const NULL_SHARE: f64 = 1e-6;
 /// How far (unit vectors) a gauge may lie from the undetermined directions and still count as one of them.
 const GAUGE_TOLERANCE: f64 = 1e-6;
 
-/// `v` with `H v = w` for the information matrix `H`, and whether `H` is positive definite (every parameter
-/// determined): by Cholesky where it is; where it is singular (directions the data do not determine), by the
+/// `v` with `H v = w` for the information matrix `H`, and whether every parameter is determined (`H`
+/// positive definite, or singular along the gauge alone): by Cholesky where `H` is positive definite; where it is singular (directions the data do not determine), by the
 /// pseudo-inverse, provided `w` has no part in those directions (then `w . theta` is determined even though
 /// `theta` is not, and `v` gives its variance) other than along `gauge` where the gauge is one of them (the
 /// caller holds theta there); `None` otherwise.
@@ -490,23 +491,28 @@ fn solve_determined(
     let mut v = DVector::zeros(w.len());
     let mut null_w = DVector::zeros(w.len());
     let mut null_g = DVector::zeros(w.len());
+    let mut nulls = 0;
     let g = gauge.and_then(|g| g.try_normalize(0.0));
     for (k, lambda) in eig.eigenvalues.iter().enumerate() {
         let q = eig.eigenvectors.column(k);
         if *lambda > NULL_EIGEN * top {
             v += q * (q.dot(w) / lambda);
         } else {
+            nulls += 1;
             null_w += q * q.dot(w);
             if let Some(g) = &g {
                 null_g += q * q.dot(g);
             }
         }
     }
-    // A gauge that lies in the undetermined directions takes its part of w with it.
-    if let Some(g) = g.filter(|g| (null_g - g).norm() <= GAUGE_TOLERANCE) {
-        null_w -= &g * null_w.dot(&g);
+    // A gauge that lies in the undetermined directions takes its part of w with it; where it is the only
+    // one, every parameter but the one the caller holds is determined.
+    let held = g.filter(|g| (null_g - g).norm() <= GAUGE_TOLERANCE);
+    if let Some(g) = &held {
+        null_w -= g * null_w.dot(g);
     }
-    (null_w.norm() <= NULL_SHARE * w.norm()).then_some((v, false))
+    let all_but_gauge = held.is_some() && nulls == 1;
+    (null_w.norm() <= NULL_SHARE * w.norm()).then_some((v, all_but_gauge))
 }
 
 /// The Bartlett window for residuals `r`: out to the first lag where their autocorrelation falls below
@@ -654,7 +660,8 @@ mod tests {
 
     /// A gauge the data do not determine, held by the caller, takes its part of the combination: th[0] alone
     /// is undetermined (only th[0] + th[1] is), but with th[0] - th[1] held it is half the sum, with a
-    /// quarter of the sum's variance; a gauge that is determined, or not the undetermined direction the
+    /// quarter of the sum's variance, and every other parameter counts as determined unless another
+    /// direction is undetermined too; a gauge that is determined, or not the undetermined direction the
     /// combination has a part in, changes nothing.
     #[test]
     fn a_held_gauge_determines_the_rest() {
@@ -670,7 +677,10 @@ mod tests {
         let sum = var(&[1.0, 1.0, 0.0], &[]).unwrap();
         assert!(var(&[1.0, 0.0, 0.0], &[]).is_none());
         let first = var(&[1.0, 0.0, 0.0], &[2.0, -2.0, 0.0]).unwrap();
-        assert!(!first.all_determined);
+        assert!(
+            first.all_determined,
+            "the gauge is the one undetermined direction"
+        );
         assert!(
             (first.classical / sum.classical - 0.25).abs() < 1e-6,
             "{first:?} {sum:?}"
@@ -680,6 +690,22 @@ mod tests {
         assert!(var(&[1.0, 0.0, 0.0], &[1.0, 1.0, 0.0]).is_none());
         assert!(var(&[1.0, 0.0, 0.0], &[0.0, 0.0, 1.0]).is_none());
         assert!(var(&[1.0, 0.0, 0.0], &[1.0, -1.0]).is_none());
+        // A parameter the residuals ignore beside the gauge: the combination is still read, but not every
+        // parameter is determined.
+        let ignored = |th: &[f64], out: &mut Vec<f64>| f(&th[..3], out);
+        let four = combination_variance(
+            &ignored,
+            &[1.0, 2.0, 0.0, 5.0],
+            &[1.0; 4],
+            1e-6,
+            &[1.0, 0.0, 0.0, 0.0],
+            &[1.0, -1.0, 0.0, 0.0],
+        )
+        .unwrap();
+        assert!(!four.all_determined);
+        // s^2 counts four parameters against three.
+        let dof = (n - 3) as f64 / (n - 4) as f64;
+        assert!((four.classical / first.classical / dof - 1.0).abs() < 1e-6);
     }
 
     #[test]

@@ -458,14 +458,32 @@ impl EffectModel {
         w
     }
 
+    /// The direction over the packed parameters along which the gaps move without the play's width being
+    /// seen where an element after the borders hides it (the record determines it only where nothing
+    /// hides it, and the caller holds it where the record does not):
+    /// - with the play inside a friction element's spring (contact), the gap's centre (c1 by -1, c2 by
+    ///   +1): shifting the centre by s and the slider by -s gives the same force, so once the slider has
+    ///   slipped (it then sits where the slip put it) only the samples before the first slip see the
+    ///   centre;
+    /// - otherwise the output's level (c1 by 1/m1, c2 by -1/m2: the play of unequal slopes is read at a
+    ///   level, [`EffectModel::level_weights`]), which a friction element after the borders does not see.
+    pub fn gauge_weights(&self, time_scale: f64) -> Vec<f64> {
+        if !self.has_contact() {
+            return self.level_weights(time_scale);
+        }
+        let mut w = vec![0.0; self.pack(time_scale).len()];
+        let [_, c1, c2] = self.gap_entries();
+        (w[c1], w[c2]) = (-1.0, 1.0);
+        w
+    }
+
     /// The direction over the packed parameters that moves the output's level by one and nothing else on
     /// the borders (c1 by 1/m1, c2 by -1/m2: the play of unequal slopes is read at a level, see
-    /// `Problem::play_variance`); a friction element after the borders does not see it.
+    /// `Problem::play_variance`).
     pub fn level_weights(&self, time_scale: f64) -> Vec<f64> {
         let mut w = vec![0.0; self.pack(time_scale).len()];
         let [_, c1, c2] = self.gap_entries();
-        w[c1] = 1.0 / self.base.m1;
-        w[c2] = -1.0 / self.base.m2;
+        (w[c1], w[c2]) = (1.0 / self.base.m1, -1.0 / self.base.m2);
         w
     }
 

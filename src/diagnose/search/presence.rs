@@ -110,6 +110,8 @@ pub struct SplitVerdict {
     pub play: f64,
     /// For `undetermined`: what kept it from `present` and from `absent` there.
     pub undecided_by: Vec<String>,
+    /// Reversals of the linear block's output that cross the play there (fit part, held-out part).
+    pub reversals: [usize; 2],
 }
 
 /// The verdict on play with its evidence (the JSON's `backlash`).
@@ -322,16 +324,24 @@ impl BacklashSupport {
                 "play: absent, none above {} in the linear block's units (95%)",
                 g(self.play_bound.unwrap_or(f64::NAN))
             ),
-            _ => format!(
-                "play: undetermined, {} +/- {} in the linear block's units: {}",
-                g(self.play),
-                self.play_se.map_or("unknown".into(), g),
-                if self.undecided_by.is_empty() {
+            _ => {
+                let se = self.play_se.map_or("unknown".into(), g);
+                let size = if self.play > 0.0 {
+                    format!("{} +/- {se} in the linear block's units", g(self.play))
+                } else {
+                    // A negative or zero gap is not a play: said as the fit's gap, not as a size.
+                    format!(
+                        "the fitted gap c1 + c2 is {} +/- {se}, which is no play",
+                        g(self.play)
+                    )
+                };
+                let why = if self.undecided_by.is_empty() {
                     "no evidence either way".into()
                 } else {
                     self.undecided_by.join("; ")
-                }
-            ),
+                };
+                format!("play: undetermined, {size}: {why}")
+            }
         }
     }
 
@@ -494,7 +504,9 @@ impl Context<'_, '_> {
             && self.play_free.iter().all(|t| beats(r, t, self.needed_z()));
         let significant = self.significant(reasons);
         let crossed = self.crossed(reasons);
-        let identified = self.identified(reasons);
+        // Both said, whichever fails.
+        let (told_apart, slips) = (self.identified(reasons), self.slider_slips(reasons));
+        let identified = told_apart && slips;
         let mut halves = None;
         let present = !impossible && significant && gains && crossed && identified && {
             self.depth != Depth::Full || {
@@ -554,7 +566,9 @@ impl Context<'_, '_> {
             ),
             (
                 claim && crossed && !identified,
-                "the record does not tell the friction element from the gap (see the reasons)".into(),
+                "the record does not tell the friction element from the gap, or its gap from a dead zone \
+                 (see the reasons)"
+                    .into(),
             ),
             (
                 claim && crossed && identified,
@@ -631,23 +645,53 @@ impl Context<'_, '_> {
     }
 
     /// Whether the friction element and the gap are told apart: false where the model has a friction
-    /// element and the record does not determine every parameter (the friction absorbs where the gap sits,
-    /// so the play c1 + c2 has a variance, but the loop is read as friction and as play alike: a
-    /// Coulomb-viscous mass without play fits so), in words. Elsewhere an undetermined centre is a constant
-    /// traded against the gap (direction-dependent dynamics' falling constant) and the play stands.
+    /// element and the record leaves a parameter undetermined beyond the one the element hides by
+    /// construction (`EffectModel::gauge_weights`: the gap's centre, which a slipping slider absorbs, or
+    /// the level a series element does not see): a slip level never reached, or a spring traded against
+    /// the gap, so the loop is read as friction and as play alike; in words. Elsewhere an undetermined
+    /// centre is a constant traded against the gap (direction-dependent dynamics' falling constant) and
+    /// the play stands.
     fn identified(&self, reasons: &mut Vec<String>) -> bool {
         let r = self.r;
         let told_apart = r.identified || r.model.effects().friction.is_none();
         if r.se.is_some() && !told_apart {
             reasons.push(
                 "the record does not determine every parameter of the model with its friction element (the \
-                 information matrix is singular: the play c1 + c2 is determined, but not where the gap sits, \
-                 which the friction absorbs): the loop reads as friction and as play alike, so the play is \
-                 not claimed"
+                 information matrix is singular beyond where the gap sits, which the element hides by \
+                 construction: a slip level never reached, or the spring traded against the gap): the play \
+                 c1 + c2 is determined, but the loop reads as friction and as play alike, so it is not \
+                 claimed"
                     .into(),
             );
         }
         told_apart
+    }
+
+    /// Whether the gap inside a friction element's spring (contact form) moves: its slider slips, on the
+    /// fit part, by more than the play. A slider that never slips holds the gap where it started, a band
+    /// of zero force at a fixed place: a dead zone inside the spring, which has no memory (a Coulomb-viscous
+    /// mass driven by a force and measured by its velocity fits so: its velocity stays zero while the force
+    /// lies within +-Fc, wherever it came from), so it is not a play; in words. True for every other model.
+    fn slider_slips(&self, reasons: &mut Vec<String>) -> bool {
+        let r = self.r;
+        if !r.model.has_contact() {
+            return true;
+        }
+        // In the contact form the backlash output is the slider's position.
+        let z = &r.sim.w[..self.p.n_fit];
+        let lo = z.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = z.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let moves = hi - lo > r.play;
+        if !moves {
+            reasons.push(format!(
+                "the friction element's slider moves by {} on the fit part, less than the play {}: the gap \
+                 stays where it started, a band of zero force at a fixed place, which is a dead zone inside \
+                 the spring (no memory), not a play",
+                g(hi - lo),
+                g(r.play)
+            ));
+        }
+        moves
     }
 
     /// The z the held-out gain needs against every play-free model: [`MIN_Z`], or [`FEW_REVERSALS_Z`] when
@@ -927,6 +971,54 @@ impl Context<'_, '_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A gap inside a friction element's spring is a play only where the slider slips: the paper's linear
+    /// block with equal slopes and a gap of 0.6 inside the spring, at noise 0.02. With slip levels the
+    /// force never reaches, the gap stays where it started (a dead zone inside the spring, no memory) and
+    /// the verdict says so; with slip levels it reaches, it does not.
+    #[test]
+    fn a_gap_whose_slider_never_slips_is_a_dead_zone() {
+        use crate::diagnose::effects::friction::extension;
+        use crate::diagnose::fit::lm::LmOptions;
+        use crate::diagnose::fit::model::tests::{input, paper_base, with_noise};
+        use crate::diagnose::fit::model::{BaseModel, Rest};
+        use crate::plant::effects::FrictionForm;
+        let n = 2000;
+        let u = input(n);
+        let said = |slip: f64| {
+            let base = BaseModel {
+                c1: 0.3,
+                c2: 0.3,
+                m2: 1.0,
+                ..paper_base()
+            };
+            let m = EffectModel::plain(base).with(extension(slip, slip, FrictionForm::Contact));
+            let sim = m.simulate(&u, Rest::ZERO, n, 1e6).expect("the model runs");
+            let y = with_noise(&sim.y, 0.02, 5);
+            let p = Problem::new(&u, &y, 1400, LmOptions::default());
+            assess(&p, &m, Depth::Twin).reasons.join(" | ")
+        };
+        let never = said(100.0);
+        assert!(never.contains("a dead zone inside the spring"), "{never}");
+        let slips = said(0.5);
+        assert!(!slips.contains("a dead zone inside the spring"), "{slips}");
+    }
+
+    /// The first line never prints a negative gap as a play's size.
+    #[test]
+    fn a_negative_gap_is_not_headlined_as_a_play() {
+        let mut s = BacklashSupport::undetermined("for the test");
+        (s.play, s.play_se) = (-0.16, Some(0.9));
+        let h = s.headline();
+        assert!(
+            h.contains("the fitted gap c1 + c2 is -0.16") && h.contains("which is no play"),
+            "{h}"
+        );
+        s.play = 0.5;
+        let h = s.headline();
+        assert!(h.starts_with("play: undetermined, 0.5"), "{h}");
+        assert!(!h.contains("no play"), "{h}");
+    }
 
     /// A triangle of amplitude 1: every turn moves 2 back, so a threshold below 2 counts each turn after the
     /// first rise, one of 2.5 none; noise of 0.1 on a constant counts nothing at 0.5.

@@ -30,7 +30,8 @@ impl Problem<'_> {
     /// The variance of `w . theta` (theta packed as [`EffectModel::pack`]) at `m`, the classical one and
     /// the sandwich that holds with autocorrelated residuals (simulation errors on the fit part); where the
     /// fit part does not determine the output's level (a friction element sees only its changes), at `m`'s
-    /// level ([`EffectModel::level_weights`]).
+    /// level, or where a friction element's slider absorbs the gap's centre, at `m`'s centre
+    /// ([`EffectModel::gauge_weights`]).
     pub fn combination_variance(&self, m: &EffectModel, w: &[f64]) -> Option<CombinationVariance> {
         let ts = self.time_scale;
         let f = |th: &[f64], out: &mut Vec<f64>| {
@@ -38,8 +39,8 @@ impl Problem<'_> {
             SCRATCH
                 .with_borrow_mut(|s| self.residuals(&mm, Objective::Simulation, self.n_fit, s, out))
         };
-        let level = m.level_weights(ts);
-        combination_variance(&f, &m.pack(ts), &self.typical(m), self.lm.fd_rel, w, &level)
+        let gauge = m.gauge_weights(ts);
+        combination_variance(&f, &m.pack(ts), &self.typical(m), self.lm.fd_rel, w, &gauge)
     }
 
     /// The play of `m` refitted to the fit part's samples `range` alone, with its sandwich standard error
@@ -78,8 +79,8 @@ impl Problem<'_> {
         let fit = levenberg_marquardt(&f, &pins.reduce(&full), &typ, &[], &self.lm).ok()?;
         let fitted = unpack(&fit.theta);
         let w = pins.reduce(&fitted.play_weights(ts));
-        let level = pins.reduce(&fitted.level_weights(ts));
-        let var = combination_variance(&f, &fit.theta, &typ, self.lm.fd_rel, &w, &level);
+        let gauge = pins.reduce(&fitted.gauge_weights(ts));
+        let var = combination_variance(&f, &fit.theta, &typ, self.lm.fd_rel, &w, &gauge);
         Some((
             fitted.play(),
             var.map_or(f64::INFINITY, |v| v.sandwich.sqrt()),
@@ -95,7 +96,8 @@ impl Problem<'_> {
     /// both variances (it holds for white residuals too). Without it, on random plants with play at a
     /// noise of 1/30 of the output's spread, the play's spread over noise draws was three times its
     /// standard error (`examples/play_coverage.rs --plant 48`). The level's direction is
-    /// [`EffectModel::level_weights`], the one the variance is held at where the fit part leaves it free.
+    /// [`EffectModel::level_weights`], the one the variance is held at where the fit part leaves it free
+    /// (with the play inside a friction element's spring, the gap's centre is held instead).
     pub fn play_variance(&self, m: &EffectModel) -> Option<CombinationVariance> {
         let play = m.play_weights(self.time_scale);
         let mut v = self.combination_variance(m, &play)?;
