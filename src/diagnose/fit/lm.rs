@@ -397,7 +397,7 @@ impl Information {
 }
 
 /// The variance of a linear combination `w . theta` of a least-squares estimate, two ways.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct CombinationVariance {
     /// `s^2 w^T (J^T J)^-1 w`: right when the residuals are white.
     pub classical: f64,
@@ -407,10 +407,29 @@ pub struct CombinationVariance {
     pub sandwich: f64,
     /// The Bartlett window's lags.
     pub lags: usize,
-    /// Whether the record determines every parameter (`J^T J` positive definite) but for the gauge the
-    /// caller holds, if that is the one direction it does not determine; when not, the combination is
-    /// still determined (else there would be no variance), through the pseudo-inverse.
-    pub all_determined: bool,
+    /// The directions over the parameters (unit vectors) the record does not determine, but for the gauge
+    /// the caller holds: empty where `J^T J` is positive definite or singular along the gauge alone. Where
+    /// not empty the combination is still determined (else there would be no variance), through the
+    /// pseudo-inverse; which parameters the directions move says whether that matters (a saturation limit
+    /// the output never reaches, or the parameters of the play itself).
+    pub undetermined: Vec<Vec<f64>>,
+}
+
+impl CombinationVariance {
+    /// Whether the record determines every parameter but the gauge.
+    pub fn all_determined(&self) -> bool {
+        self.undetermined.is_empty()
+    }
+
+    /// Whether the record determines the parameters at `entries` (packed positions): no undetermined
+    /// direction moves them by more than rounding.
+    pub fn determines(&self, entries: &[usize]) -> bool {
+        self.undetermined.iter().all(|d| {
+            entries
+                .iter()
+                .all(|&i| d.get(i).is_none_or(|v| v.abs() <= NULL_PART))
+        })
+    }
 }
 
 /// The longest Bartlett window of [`combination_variance`] (lags), and its share of the record at most.
@@ -440,7 +459,7 @@ pub fn combination_variance<R: Residuals + ?Sized>(
     let Information { r, jac, h, .. } = info;
     let n = r.len();
     let gauge = (gauge.len() == p).then(|| DVector::from_column_slice(gauge));
-    let (v, all_determined) = solve_determined(&h, &DVector::from_column_slice(w), gauge.as_ref())?;
+    let (v, undetermined) = solve_determined(&h, &DVector::from_column_slice(w), gauge.as_ref())?;
     let classical = s2 * v.dot(&DVector::from_column_slice(w));
     // The influence of each sample on w . theta: (v . J_t) r_t.
     let score: Vec<f64> = (0..n)
@@ -458,7 +477,10 @@ pub fn combination_variance<R: Residuals + ?Sized>(
         classical,
         sandwich,
         lags,
-        all_determined,
+        undetermined: undetermined
+            .iter()
+            .map(|d| d.iter().copied().collect())
+            .collect(),
     })
 }
 
@@ -469,9 +491,12 @@ const NULL_EIGEN: f64 = 1e-9;
 const NULL_SHARE: f64 = 1e-6;
 /// How far (unit vectors) a gauge may lie from the undetermined directions and still count as one of them.
 const GAUGE_TOLERANCE: f64 = 1e-6;
+/// How much of an undetermined direction (a unit vector) may lie on a parameter (rounding) for the
+/// parameter to count as determined.
+const NULL_PART: f64 = 1e-6;
 
-/// `v` with `H v = w` for the information matrix `H`, and whether every parameter is determined (`H`
-/// positive definite, or singular along the gauge alone): by Cholesky where `H` is positive definite; where it is singular (directions the data do not determine), by the
+/// `v` with `H v = w` for the information matrix `H`, and the directions `H` leaves undetermined but for
+/// `gauge` (none where `H` is positive definite): by Cholesky where it is; where it is singular, by the
 /// pseudo-inverse, provided `w` has no part in those directions (then `w . theta` is determined even though
 /// `theta` is not, and `v` gives its variance) other than along `gauge` where the gauge is one of them (the
 /// caller holds theta there); `None` otherwise.
@@ -479,9 +504,9 @@ fn solve_determined(
     h: &DMatrix<f64>,
     w: &DVector<f64>,
     gauge: Option<&DVector<f64>>,
-) -> Option<(DVector<f64>, bool)> {
+) -> Option<(DVector<f64>, Vec<DVector<f64>>)> {
     if let Some(c) = h.clone().cholesky() {
-        return Some((c.solve(w), true));
+        return Some((c.solve(w), Vec::new()));
     }
     let eig = h.clone().symmetric_eigen();
     let top = eig.eigenvalues.iter().fold(0.0f64, |a, v| a.max(*v));
@@ -489,30 +514,36 @@ fn solve_determined(
         return None;
     }
     let mut v = DVector::zeros(w.len());
-    let mut null_w = DVector::zeros(w.len());
-    let mut null_g = DVector::zeros(w.len());
-    let mut nulls = 0;
-    let g = gauge.and_then(|g| g.try_normalize(0.0));
+    let mut nulls = Vec::new();
     for (k, lambda) in eig.eigenvalues.iter().enumerate() {
         let q = eig.eigenvectors.column(k);
         if *lambda > NULL_EIGEN * top {
             v += q * (q.dot(w) / lambda);
         } else {
-            nulls += 1;
-            null_w += q * q.dot(w);
-            if let Some(g) = &g {
-                null_g += q * q.dot(g);
-            }
+            nulls.push(q.clone_owned());
         }
     }
-    // A gauge that lies in the undetermined directions takes its part of w with it; where it is the only
-    // one, every parameter but the one the caller holds is determined.
-    let held = g.filter(|g| (null_g - g).norm() <= GAUGE_TOLERANCE);
+    let null_part = |x: &DVector<f64>| {
+        nulls
+            .iter()
+            .fold(DVector::zeros(x.len()), |acc, q| acc + q * q.dot(x))
+    };
+    let mut null_w = null_part(w);
+    // A gauge that lies in the undetermined directions takes its part of w, and of each of them, with it.
+    let held = gauge
+        .and_then(|g| g.try_normalize(0.0))
+        .filter(|g| (null_part(g) - g).norm() <= GAUGE_TOLERANCE);
     if let Some(g) = &held {
         null_w -= g * null_w.dot(g);
+        for q in &mut nulls {
+            *q -= g * q.dot(g);
+        }
     }
-    let all_but_gauge = held.is_some() && nulls == 1;
-    (null_w.norm() <= NULL_SHARE * w.norm()).then_some((v, all_but_gauge))
+    let undetermined = nulls
+        .into_iter()
+        .filter_map(|q| q.try_normalize(GAUGE_TOLERANCE))
+        .collect();
+    (null_w.norm() <= NULL_SHARE * w.norm()).then_some((v, undetermined))
 }
 
 /// The Bartlett window for residuals `r`: out to the first lag where their autocorrelation falls below
@@ -624,14 +655,14 @@ mod tests {
         let theta = [1.0, 2.0, 7.0];
         let typ = [1.0; 3];
         let sum = combination_variance(&f, &theta, &typ, 1e-6, &[1.0, 1.0, 0.0], &[]).unwrap();
-        assert!(!sum.all_determined);
+        assert!(!sum.all_determined());
         let single = |th: &[f64], out: &mut Vec<f64>| {
             out.clear();
             out.extend((0..n).map(|k| y[k] - th[0] * t[k]));
             true
         };
         let one = combination_variance(&single, &[3.0], &[1.0], 1e-6, &[1.0], &[]).unwrap();
-        assert!(one.all_determined);
+        assert!(one.all_determined());
         // s^2 = cost / (n - p) counts three parameters against one.
         let dof = (n - 1) as f64 / (n - 3) as f64;
         assert!(
@@ -678,7 +709,7 @@ mod tests {
         assert!(var(&[1.0, 0.0, 0.0], &[]).is_none());
         let first = var(&[1.0, 0.0, 0.0], &[2.0, -2.0, 0.0]).unwrap();
         assert!(
-            first.all_determined,
+            first.all_determined(),
             "the gauge is the one undetermined direction"
         );
         assert!(
@@ -702,7 +733,9 @@ mod tests {
             &[1.0, -1.0, 0.0, 0.0],
         )
         .unwrap();
-        assert!(!four.all_determined);
+        assert!(!four.all_determined());
+        // ... the one it ignores: the others are determined.
+        assert!(four.determines(&[0, 1, 2]) && !four.determines(&[3]));
         // s^2 counts four parameters against three.
         let dof = (n - 3) as f64 / (n - 4) as f64;
         assert!((four.classical / first.classical / dof - 1.0).abs() < 1e-6);

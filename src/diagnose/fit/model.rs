@@ -449,6 +449,22 @@ impl EffectModel {
         [i, i + 1, i + 2]
     }
 
+    /// Packed positions of the parameters that say where the play is and how it acts: m2, c1, c2 and those
+    /// of a friction element (which holds a play of its own); a parameter elsewhere that the record does
+    /// not determine (a saturation limit the output never reaches) says nothing about the play.
+    pub fn play_entries(&self) -> Vec<usize> {
+        let mut at = self.base.n_params();
+        let mut out = self.gap_entries().to_vec();
+        for e in &self.exts {
+            let n = e.n_fitted();
+            if e.effects().friction.is_some() {
+                out.extend(at..at + n);
+            }
+            at += n;
+        }
+        out
+    }
+
     /// The weights of the play c1 + c2 over the packed parameters.
     pub fn play_weights(&self, time_scale: f64) -> Vec<f64> {
         let mut w = vec![0.0; self.pack(time_scale).len()];

@@ -167,7 +167,8 @@ struct Reading {
     play: f64,
     se: Option<f64>,
     se_white: Option<f64>,
-    /// Whether the record determines every parameter of the model (beside a friction element, a claim needs it).
+    /// Whether the record determines the play's own parameters (m2, c1, c2, a friction element's) but for
+    /// the gauge (beside a friction element, a claim needs it).
     identified: bool,
     travel: f64,
 }
@@ -273,9 +274,9 @@ fn read(p: &Problem, last: &EffectModel, name: &str) -> Option<Reading> {
     Some(Reading {
         name: name.into(),
         play: model.play(),
-        se: var.map(|v| v.sandwich.sqrt()),
-        se_white: var.map(|v| v.classical.sqrt()),
-        identified: var.is_some_and(|v| v.all_determined),
+        se: var.as_ref().map(|v| v.sandwich.sqrt()),
+        se_white: var.as_ref().map(|v| v.classical.sqrt()),
+        identified: var.is_some_and(|v| v.determines(&model.play_entries())),
         model,
         sim,
         heldout,
@@ -645,22 +646,24 @@ impl Context<'_, '_> {
     }
 
     /// Whether the friction element and the gap are told apart: false where the model has a friction
-    /// element and the record leaves a parameter undetermined beyond the one the element hides by
+    /// element and the record leaves one of the play's own parameters (m2, c1, c2, the element's slip
+    /// levels: `EffectModel::play_entries`) undetermined beyond the direction the element hides by
     /// construction (`EffectModel::gauge_weights`: the gap's centre, which a slipping slider absorbs, or
     /// the level a series element does not see): a slip level never reached, or a spring traded against
-    /// the gap, so the loop is read as friction and as play alike; in words. Elsewhere an undetermined
-    /// centre is a constant traded against the gap (direction-dependent dynamics' falling constant) and
-    /// the play stands.
+    /// the gap, so the loop is read as friction and as play alike; in words. A parameter elsewhere that
+    /// the record does not determine (a saturation limit never reached) says nothing about the play.
+    /// Without friction an undetermined centre is a constant traded against the gap (direction-dependent
+    /// dynamics' falling constant) and the play stands.
     fn identified(&self, reasons: &mut Vec<String>) -> bool {
         let r = self.r;
         let told_apart = r.identified || r.model.effects().friction.is_none();
         if r.se.is_some() && !told_apart {
             reasons.push(
-                "the record does not determine every parameter of the model with its friction element (the \
-                 information matrix is singular beyond where the gap sits, which the element hides by \
-                 construction: a slip level never reached, or the spring traded against the gap): the play \
-                 c1 + c2 is determined, but the loop reads as friction and as play alike, so it is not \
-                 claimed"
+                "the record does not determine the gap's and the friction element's parameters (the \
+                 information matrix is singular along them beyond where the gap sits, which the element \
+                 hides by construction: a slip level never reached, or the spring traded against the gap): \
+                 the play c1 + c2 is determined, but the loop reads as friction and as play alike, so it is \
+                 not claimed"
                     .into(),
             );
         }
