@@ -423,6 +423,15 @@ fn beats(r: &Reading, t: &PlayFree, z: f64) -> bool {
     )
 }
 
+/// The play-free model of `play_free` with the lowest held-out error among those a model with the gap
+/// (held-out RMSE `rmse`) does not beat at `z`: the other explanation of the record.
+fn best_unbeaten(rmse: f64, play_free: &[PlayFree], z: f64) -> Option<&PlayFree> {
+    play_free
+        .iter()
+        .filter(|t| !better_by(rmse, t.heldout_rmse, t.z, MIN_GAIN, z))
+        .min_by(|a, b| a.heldout_rmse.total_cmp(&b.heldout_rmse))
+}
+
 /// Whether a play `play` with standard error `se` is above zero by 1.96 of them and its model (held-out RMSE
 /// `rmse`) predicts better than every play-free model of `play_free` at z [`MIN_Z`] or more, however little.
 fn unclaimed_play_helps(play: f64, se: Option<f64>, rmse: f64, play_free: &[PlayFree]) -> bool {
@@ -536,11 +545,7 @@ impl Context<'_, '_> {
                 gains && !significant,
                 "the gap helps on the held-out part but is not significantly above zero".into(),
             ),
-            (
-                !gains && significant,
-                "the gap is significant on the fit part but a play-free model predicts the held-out part as well"
-                    .into(),
-            ),
+            (!gains && significant, self.two_explanations()),
             (
                 narrow,
                 "a play too narrow to claim predicts the held-out part better than every play-free model".into(),
@@ -580,6 +585,28 @@ impl Context<'_, '_> {
         .filter_map(|(on, why)| on.then_some(why))
         .collect();
         out
+    }
+
+    /// Where the gap is significant on the fit part but does not beat every play-free model held out: the
+    /// two explanations, the model with the play and the best play-free model it does not beat, with their
+    /// held-out errors (issue 56: which of two explanations a user gets is not a coin tossed for them).
+    fn two_explanations(&self) -> String {
+        let r = self.r;
+        let rmse = rms(r.heldout.iter().copied());
+        let Some(t) = best_unbeaten(rmse, self.play_free, self.needed_z()) else {
+            return "the gap is significant on the fit part but no play-free model could be fitted to judge it \
+                    against on the held-out part"
+                .into();
+        };
+        format!(
+            "two explanations predict the held-out part alike: the model with a play of {} (held-out error {}) \
+             and the {} model without one ({}, Diebold-Mariano z {:.2})",
+            g(r.play),
+            g(rmse),
+            t.model,
+            g(t.heldout_rmse),
+            t.z
+        )
     }
 
     /// Whether the model with the gap predicts the held-out part clearly worse than its zero-gap twin (a
@@ -1021,6 +1048,28 @@ mod tests {
         let h = s.headline();
         assert!(h.starts_with("play: undetermined, 0.5"), "{h}");
         assert!(!h.contains("no play"), "{h}");
+    }
+
+    /// The other explanation is the best play-free model the gap does not beat: of a beaten one (the gap 10%
+    /// better at z 4), a close one and a better one, the better one; none where every one is beaten.
+    #[test]
+    fn the_other_explanation_is_the_best_unbeaten_play_free_model() {
+        let free = |model: &str, heldout_rmse: f64, z: f64| PlayFree {
+            model: model.into(),
+            heldout_rmse,
+            z,
+            errors: Vec::new(),
+        };
+        let all = [
+            free("zero-gap", 1.1, 4.0),
+            free("zero-gap + friction", 1.01, 0.5),
+            free("zero-gap + saturation", 0.95, -1.0),
+        ];
+        let best = best_unbeaten(1.0, &all, MIN_Z).map(|t| t.model.as_str());
+        assert_eq!(best, Some("zero-gap + saturation"));
+        let best = best_unbeaten(1.0, &all[..2], MIN_Z).map(|t| t.model.as_str());
+        assert_eq!(best, Some("zero-gap + friction"));
+        assert!(best_unbeaten(1.0, &all[..1], MIN_Z).is_none());
     }
 
     /// A triangle of amplitude 1: every turn moves 2 back, so a threshold below 2 counts each turn after the
