@@ -599,8 +599,8 @@ impl Context<'_, '_> {
                 .into();
         };
         format!(
-            "two explanations predict the held-out part alike: the model with a play of {} (held-out error {}) \
-             and the {} model without one ({}, Diebold-Mariano z {:.2})",
+            "two explanations: the model with a play of {} (held-out error {}) and the {} model without one \
+             ({}, Diebold-Mariano z {:.2}), which predicts the held-out part as well or better",
             g(r.play),
             g(rmse),
             t.model,
