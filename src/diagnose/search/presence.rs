@@ -1034,7 +1034,7 @@ mod tests {
         assert!(!slips.contains("a dead zone inside the spring"), "{slips}");
     }
 
-    /// The first line never prints a negative gap as a play's size.
+    /// The first line never prints a gap of zero or less as a play's size; a claim is headlined as one.
     #[test]
     fn a_negative_gap_is_not_headlined_as_a_play() {
         let mut s = BacklashSupport::undetermined("for the test");
@@ -1044,10 +1044,20 @@ mod tests {
             h.contains("the fitted gap c1 + c2 is -0.16") && h.contains("which is no play"),
             "{h}"
         );
+        s.play = 0.0;
+        assert!(
+            s.headline().contains("which is no play"),
+            "{}",
+            s.headline()
+        );
         s.play = 0.5;
         let h = s.headline();
         assert!(h.starts_with("play: undetermined, 0.5"), "{h}");
         assert!(!h.contains("no play"), "{h}");
+        (s.presence, s.play_input_units) = (Presence::Present, Some(0.25));
+        let h = s.headline();
+        assert!(h.starts_with("play: present, 0.5000 +/- 0.9000"), "{h}");
+        assert!(h.contains("about 0.2500 in the input's units"), "{h}");
     }
 
     /// A play-free model for the comparisons, named `model`, with its held-out error and the gap's z against it.

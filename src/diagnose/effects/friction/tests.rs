@@ -166,3 +166,18 @@ fn a_half_after_friction_reads_the_play_at_the_whole_models_level() {
         assert!((play - 1.5).abs() < 3.0 * se, "{range:?}: {play} +/- {se}");
     }
 }
+
+/// The play's own parameters among the packed ones: the paper block (a1, a2, b0) then m2, c1, c2 at 3, 4, 5,
+/// and a friction element's two slip levels wherever it sits; a saturation's limits are not among them.
+#[test]
+fn the_plays_own_entries_are_the_gaps_and_the_friction_elements() {
+    use crate::diagnose::effects::saturation;
+    let base = EffectModel::plain(paper_base());
+    let sat = saturation::extension(-5.0, 5.0);
+    let fr = extension(1.0, 1.0, FrictionForm::Contact);
+    assert_eq!(base.play_entries(), [3, 4, 5]);
+    let after = base.with(sat.clone()).with(fr.clone());
+    assert_eq!(after.play_entries(), [3, 4, 5, 8, 9]);
+    let before = base.with(fr).with(sat);
+    assert_eq!(before.play_entries(), [3, 4, 5, 6, 7]);
+}
