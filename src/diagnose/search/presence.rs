@@ -1034,7 +1034,8 @@ mod tests {
         assert!(!slips.contains("a dead zone inside the spring"), "{slips}");
     }
 
-    /// The first line never prints a gap of zero or less as a play's size; a claim is headlined as one.
+    /// The first line never prints a gap of zero or less as a play's size; a claim is headlined as one, an
+    /// absence with its bound.
     #[test]
     fn a_negative_gap_is_not_headlined_as_a_play() {
         let mut s = BacklashSupport::undetermined("for the test");
@@ -1058,6 +1059,9 @@ mod tests {
         let h = s.headline();
         assert!(h.starts_with("play: present, 0.5000 +/- 0.9000"), "{h}");
         assert!(h.contains("about 0.2500 in the input's units"), "{h}");
+        (s.presence, s.play_bound) = (Presence::Absent, Some(0.8));
+        let h = s.headline();
+        assert!(h.starts_with("play: absent, none above 0.8000"), "{h}");
     }
 
     /// A play-free model for the comparisons, named `model`, with its held-out error and the gap's z against it.
