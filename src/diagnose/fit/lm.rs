@@ -416,11 +416,6 @@ pub struct CombinationVariance {
 }
 
 impl CombinationVariance {
-    /// Whether the record determines every parameter but the gauge.
-    pub fn all_determined(&self) -> bool {
-        self.undetermined.is_empty()
-    }
-
     /// Whether the record determines the parameters at `entries` (packed positions): no undetermined
     /// direction moves them by more than rounding.
     pub fn determines(&self, entries: &[usize]) -> bool {
@@ -655,14 +650,14 @@ mod tests {
         let theta = [1.0, 2.0, 7.0];
         let typ = [1.0; 3];
         let sum = combination_variance(&f, &theta, &typ, 1e-6, &[1.0, 1.0, 0.0], &[]).unwrap();
-        assert!(!sum.all_determined());
+        assert!(!sum.undetermined.is_empty());
         let single = |th: &[f64], out: &mut Vec<f64>| {
             out.clear();
             out.extend((0..n).map(|k| y[k] - th[0] * t[k]));
             true
         };
         let one = combination_variance(&single, &[3.0], &[1.0], 1e-6, &[1.0], &[]).unwrap();
-        assert!(one.all_determined());
+        assert!(one.undetermined.is_empty());
         // s^2 = cost / (n - p) counts three parameters against one.
         let dof = (n - 1) as f64 / (n - 3) as f64;
         assert!(
@@ -709,7 +704,7 @@ mod tests {
         assert!(var(&[1.0, 0.0, 0.0], &[]).is_none());
         let first = var(&[1.0, 0.0, 0.0], &[2.0, -2.0, 0.0]).unwrap();
         assert!(
-            first.all_determined(),
+            first.undetermined.is_empty(),
             "the gauge is the one undetermined direction"
         );
         assert!(
@@ -733,7 +728,7 @@ mod tests {
             &[1.0, -1.0, 0.0, 0.0],
         )
         .unwrap();
-        assert!(!four.all_determined());
+        assert!(!four.undetermined.is_empty());
         // ... the one it ignores: the others are determined.
         assert!(four.determines(&[0, 1, 2]) && !four.determines(&[3]));
         // s^2 counts four parameters against three.

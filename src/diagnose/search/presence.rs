@@ -414,13 +414,12 @@ fn impossible(r: &Reading, reasons: &mut Vec<String>) -> bool {
 /// Whether the model with the gap beats the play-free model `t` on the held-out part, by [`MIN_GAIN`] with
 /// a Diebold-Mariano z of at least `z`.
 fn beats(r: &Reading, t: &PlayFree, z: f64) -> bool {
-    better_by(
-        rms(r.heldout.iter().copied()),
-        t.heldout_rmse,
-        t.z,
-        MIN_GAIN,
-        z,
-    )
+    gap_beats(rms(r.heldout.iter().copied()), t, z)
+}
+
+/// [`beats`] for a model with the gap whose held-out RMSE is `rmse`.
+fn gap_beats(rmse: f64, t: &PlayFree, z: f64) -> bool {
+    better_by(rmse, t.heldout_rmse, t.z, MIN_GAIN, z)
 }
 
 /// The play-free model of `play_free` with the lowest held-out error among those a model with the gap
@@ -428,7 +427,7 @@ fn beats(r: &Reading, t: &PlayFree, z: f64) -> bool {
 fn best_unbeaten(rmse: f64, play_free: &[PlayFree], z: f64) -> Option<&PlayFree> {
     play_free
         .iter()
-        .filter(|t| !better_by(rmse, t.heldout_rmse, t.z, MIN_GAIN, z))
+        .filter(|t| !gap_beats(rmse, t, z))
         .min_by(|a, b| a.heldout_rmse.total_cmp(&b.heldout_rmse))
 }
 
@@ -662,7 +661,7 @@ impl Context<'_, '_> {
         let Some(f) = self.r.model.effects().friction else {
             return false;
         };
-        reasons.push(if self.slider_travel().is_some_and(|t| t <= self.r.play) {
+        reasons.push(if self.slider_stuck().is_some() {
             // A contact element that never slips holds no loop: its gap is a dead zone (see
             // `slider_slips`), and a play with memory beside it is neither seen nor ruled out.
             "the final model's friction element never slips on the fit part: its gap is a dead zone inside \
@@ -713,33 +712,32 @@ impl Context<'_, '_> {
     /// mass driven by a force and measured by its velocity fits so: its velocity stays zero while the force
     /// lies within +-Fc, wherever it came from), so it is not a play; in words. True for every other model.
     fn slider_slips(&self, reasons: &mut Vec<String>) -> bool {
-        let Some(travel) = self.slider_travel() else {
+        let Some(travel) = self.slider_stuck() else {
             return true;
         };
-        let moves = travel > self.r.play;
-        if !moves {
-            reasons.push(format!(
-                "the friction element's slider moves by {} on the fit part, less than the play {}: the gap \
-                 stays where it started, a band of zero force at a fixed place, which is a dead zone inside \
-                 the spring (no memory), not a play",
-                g(travel),
-                g(self.r.play)
-            ));
-        }
-        moves
+        reasons.push(format!(
+            "the friction element's slider moves by {} on the fit part, less than the play {}: the gap stays \
+             where it started, a band of zero force at a fixed place, which is a dead zone inside the spring \
+             (no memory), not a play",
+            g(travel),
+            g(self.r.play)
+        ));
+        false
     }
 
     /// How far the slider of a friction element with the play inside its spring moves on the fit part
-    /// (max - min of its position); `None` for every other model.
-    fn slider_travel(&self) -> Option<f64> {
+    /// (max - min of its position), where that is no more than the play (the slider never slips past it);
+    /// `None` where it moves further, and for every other model.
+    fn slider_stuck(&self) -> Option<f64> {
         let r = self.r;
+        if !r.model.has_contact() {
+            return None;
+        }
         // In the contact form the backlash output is the slider's position.
-        r.model.has_contact().then(|| {
-            let z = &r.sim.w[..self.p.n_fit];
-            let lo = z.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = z.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            hi - lo
-        })
+        let z = &r.sim.w[..self.p.n_fit];
+        let lo = z.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = z.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        Some(hi - lo).filter(|travel| *travel <= r.play)
     }
 
     /// The z the held-out gain needs against every play-free model: [`MIN_Z`], or [`FEW_REVERSALS_Z`] when
