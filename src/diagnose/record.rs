@@ -1,4 +1,7 @@
-//! Records: decimation of densely sampled measurements before a diagnosis.
+//! Records: decimation of densely sampled measurements before a diagnosis, and how alike a split excites
+//! its two parts.
+
+use crate::stats::std_dev;
 
 /// Block-average decimation by `factor`: output sample i is the mean of input samples
 /// `i factor .. (i + 1) factor` of each column (a moving average over the block, which is the anti-alias
@@ -16,6 +19,24 @@ pub fn decimate(columns: &[&[f64]], factor: usize) -> Vec<Vec<f64>> {
                 .collect()
         })
         .collect()
+}
+
+/// A held-out input whose standard deviation or range is below this share of the fit part's judges little.
+pub const POOR_EXCITATION: f64 = 0.25;
+
+/// The input's excitation on the held-out part over the fit part's at the split `n_fit`: the ratios of
+/// standard deviation and of range (`NaN` where the fit part's input is constant).
+pub fn excitation(u: &[f64], n_fit: usize) -> (f64, f64) {
+    let range = |v: &[f64]| {
+        v.iter().fold(f64::NEG_INFINITY, |m, a| m.max(*a))
+            - v.iter().fold(f64::INFINITY, |m, a| m.min(*a))
+    };
+    let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { f64::NAN };
+    let (fit, held) = u.split_at(n_fit);
+    (
+        ratio(std_dev(held), std_dev(fit)),
+        ratio(range(held), range(fit)),
+    )
 }
 
 #[cfg(test)]

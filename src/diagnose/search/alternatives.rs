@@ -58,18 +58,8 @@ fn simulate_heldout(p: &Problem, m: &EffectModel) -> Option<Vec<f64>> {
 }
 
 /// The zero-gap model of `start`'s structure fitted from it, judged against the held-out errors `against`
-/// of the model with the gap; `None` when it cannot be fitted.
+/// of the model with the gap, with the fitted model; `None` when it cannot be fitted.
 pub(super) fn play_free(
-    p: &Problem,
-    against: &[f64],
-    start: &EffectModel,
-    name: &str,
-) -> Option<PlayFree> {
-    fit_play_free(p, against, start, name).map(|(free, _)| free)
-}
-
-/// [`play_free`] with the fitted zero-gap model.
-fn fit_play_free(
     p: &Problem,
     against: &[f64],
     start: &EffectModel,
@@ -132,7 +122,7 @@ pub(super) fn imitators(
                 .filter_map(|alt| {
                     let start = alt.starts.first()?;
                     let name = format!("{name} + {}", e.id());
-                    let (free, fitted) = fit_play_free(p, &last.heldout, start, &name)?;
+                    let (free, fitted) = play_free(p, &last.heldout, start, &name)?;
                     Some(Imitator {
                         free,
                         start: start.clone(),
@@ -164,8 +154,10 @@ pub(super) fn better_by(rmse: f64, than: f64, z: f64, min_gain: f64, min_z: f64)
 }
 
 /// For each imitator that the final model `last` does not clearly beat, the same structure with its gap
-/// kept, fitted from the imitator's start and from its zero-gap fit with the final model's gap opened again
-/// (the with-gap cost is not smooth: either start alone can stop short), named `<rival_name> + <effect>`;
+/// kept, fitted from the imitator's start, from its zero-gap fit with the final model's gap opened again and
+/// from that zero-gap fit as it is (the with-gap cost is not smooth: any start alone can stop short; a
+/// spurious gap opened again holds a smooth curve's borders in a worse minimum), named
+/// `<rival_name> + <effect>`;
 /// the one that predicts the held-out part best among those clearly better than `last`, or `None`.
 pub(super) fn best_rival<'a>(
     p: &Problem,
@@ -182,7 +174,7 @@ pub(super) fn best_rival<'a>(
             let half = 0.5 * last.model.play().max(0.0);
             opened.base.c1 += half;
             opened.base.c2 += half;
-            let starts = [im.start.clone(), opened];
+            let starts = [im.start.clone(), opened, im.fitted.clone()];
             let (model, _) = p.fit(&im.start, &starts, Objective::Simulation)?;
             let heldout = simulate_heldout(p, &model)?;
             Some(Fitted {

@@ -9,6 +9,7 @@ use crate::diagnose::fit::lm::LmOptions;
 use crate::diagnose::fit::model::{BaseModel, EffectModel, Simulation};
 use crate::diagnose::fit::problem::sim_limit;
 use crate::diagnose::fit::structure::{InitialState, Structure, StructureChoice};
+use crate::diagnose::record::{POOR_EXCITATION, excitation};
 use crate::diagnose::residual::Verdict;
 use crate::diagnose::search::decision;
 use crate::stats::{rms_diff, std_dev};
@@ -260,21 +261,6 @@ pub const FIT_FRACTIONS: std::ops::RangeInclusive<f64> = 0.3..=0.95;
 /// multiple of 1/20).
 const SPLIT_STEPS: f64 = 20.0;
 
-/// The input's excitation on the held-out part over the fit part's at the split `n_fit`: the ratios of
-/// standard deviation and of range (`NaN` where the fit part's input is constant).
-fn excitation(u: &[f64], n_fit: usize) -> (f64, f64) {
-    let range = |v: &[f64]| {
-        v.iter().fold(f64::NEG_INFINITY, |m, a| m.max(*a))
-            - v.iter().fold(f64::INFINITY, |m, a| m.min(*a))
-    };
-    let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { f64::NAN };
-    let (fit, held) = u.split_at(n_fit);
-    (
-        ratio(std_dev(held), std_dev(fit)),
-        ratio(range(held), range(fit)),
-    )
-}
-
 /// The fit fraction (of [`FIT_FRACTIONS`], by 0.05) whose two parts' inputs are excited most alike, and how alike:
 /// the smallest of the two ratios (held-out input over fit input: standard deviation, range) and their
 /// inverses (1: alike; a quiet held-out part judges the models on little, a quiet fit part asks them to
@@ -302,8 +288,6 @@ pub fn best_split(u: &[f64]) -> (f64, f64) {
 pub const LOW_FIT_PERCENT: f64 = 20.0;
 /// A final held-out error above this share of the constant predictor's is no better than a constant.
 pub const NEAR_CONSTANT: f64 = 0.9;
-/// A held-out input whose standard deviation or range is below this share of the fit part's judges little.
-pub const POOR_EXCITATION: f64 = 0.25;
 
 impl Explained {
     /// The final output `y_hat` against the record `y` about the fit part's mean (`y` here is already a
