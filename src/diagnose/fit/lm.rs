@@ -541,6 +541,25 @@ fn solve_determined(
     (null_w.norm() <= NULL_SHARE * w.norm()).then_some((v, undetermined))
 }
 
+/// How much the residuals' autocorrelation inflates a variance read from them as if white: their Bartlett
+/// long-run variance over the sandwich's window (`hac_lags`) against their variance (the record's samples over the effective
+/// ones, `1 + 2 sum of weighted autocorrelations`), at least 1 (negative correlation is not credited). 1 for
+/// residuals that are all zero.
+pub fn long_run_inflation(r: &[f64]) -> f64 {
+    let n = r.len();
+    let c0: f64 = r.iter().map(|v| v * v).sum();
+    if c0 <= 0.0 {
+        return 1.0;
+    }
+    let lags = hac_lags(r);
+    let gamma = |l: usize| (l..n).map(|t| r[t] * r[t - l]).sum::<f64>();
+    let lrv = c0
+        + (1..=lags)
+            .map(|l| 2.0 * (1.0 - l as f64 / (lags + 1) as f64) * gamma(l))
+            .sum::<f64>();
+    (lrv / c0).max(1.0)
+}
+
 /// The Bartlett window for residuals `r`: out to the first lag where their autocorrelation falls below
 /// 2/sqrt(n) (the white-noise band), at least Newey and West's 4 (n/100)^(2/9), at most a tenth of the
 /// record and [`MAX_HAC_LAGS`].
@@ -591,6 +610,34 @@ pub fn bic(cost: f64, n: usize, k: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The residuals' inflation: 1 for residuals that alternate in sign (negative correlation is not
+    /// credited) and for zeros; near 1 for a pseudo-random sequence; several times for AR(1) 0.8 residuals
+    /// (the long-run factor (1 + 0.8) / (1 - 0.8) = 9 in the limit, less with a finite window).
+    #[test]
+    fn long_run_inflation_counts_effective_samples() {
+        let alternating: Vec<f64> = (0..500)
+            .map(|k| if k % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        assert_eq!(long_run_inflation(&alternating), 1.0);
+        assert_eq!(long_run_inflation(&[0.0; 50]), 1.0);
+        let mut state = 12345u64;
+        let mut draw = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let white: Vec<f64> = (0..4000).map(|_| draw()).collect();
+        let w = long_run_inflation(&white);
+        assert!((1.0..1.3).contains(&w), "{w}");
+        let mut ar = vec![0.0; 4000];
+        for k in 1..ar.len() {
+            ar[k] = 0.8 * ar[k - 1] + draw();
+        }
+        let a = long_run_inflation(&ar);
+        assert!((4.0..10.0).contains(&a), "{a}");
+    }
 
     /// A straight line y = a + b t fitted by least squares: the classical variance of b is s^2 / sum (t -
     /// mean t)^2; residuals that alternate in sign (negatively correlated) leave the sandwich at the classical

@@ -27,6 +27,7 @@ use serde::Serialize;
 
 pub use super::alternatives::PlayFree;
 use super::alternatives::{Fitted, best_rival, better_by, heldout_errors, imitators, play_free};
+use crate::diagnose::fit::lm::long_run_inflation;
 use crate::diagnose::fit::model::{EffectModel, Objective, Simulation};
 use crate::diagnose::fit::problem::Problem;
 use crate::diagnose::record::{POOR_EXCITATION, excitation};
@@ -61,6 +62,8 @@ const REFITTED: &str = "the final model refitted from its zero-gap twin";
 const TWIN: &str = "zero-gap";
 /// Reversals crossing the bound, on the fit part, for `absent`.
 pub const MIN_ABSENT_REVERSALS: usize = 20;
+/// A gap within this share of the travel of zero sits at zero, the lower bound of its fit.
+const AT_ZERO: f64 = 1e-9;
 /// The widest play, as a share of the travel (1st to 99th percentile of the linear block's output on the
 /// fit part), that a record can show: a wider one is not a play.
 pub const MAX_PLAY_SHARE: f64 = 0.5;
@@ -988,11 +991,9 @@ impl Context<'_, '_> {
     /// crossed too rarely.
     fn bound(&self, reasons: &mut Vec<String>) -> Option<f64> {
         let (p, r) = (self.p, self.r);
-        let se = r.se?;
-        let white = r.se_white.filter(|w| *w > 0.0)?;
+        let (mut bound, inflation) = self.profile_start(reasons)?;
         let best = p.cost(&r.model, Objective::Simulation)?;
-        let unit = best / p.n_fit as f64 * (se / white).powi(2).max(1.0);
-        let mut bound = r.play.max(0.0) + residual::Z95 * se;
+        let unit = best / p.n_fit as f64 * inflation;
         let held = |b: f64| {
             let pins = r.model.play_pins(b, p.time_scale);
             let mut start = r.model.clone();
@@ -1028,6 +1029,40 @@ impl Context<'_, '_> {
             100.0 * MAX_BOUND_SHARE
         ));
         (narrow && crossing >= MIN_ABSENT_REVERSALS).then_some(bound)
+    }
+
+    /// Where [`Context::bound`]'s profile starts, and the factor by which the residuals' autocorrelation
+    /// inflates its unit: the Wald bound and the sandwich's inflation `(se / se_white)^2` where the play has
+    /// standard errors; where the gap sits at zero, its lower bound, which leaves it none (the fit's
+    /// bound is active: no information is read across it), [`MIN_PLAY_SHARE`] of the travel, the narrowest
+    /// play ever claimed, and the residuals' own inflation ([`long_run_inflation`]), said in words; `None`
+    /// otherwise.
+    fn profile_start(&self, reasons: &mut Vec<String>) -> Option<(f64, f64)> {
+        let r = self.r;
+        if let (Some(se), Some(white)) = (r.se, r.se_white.filter(|w| *w > 0.0)) {
+            return Some((
+                r.play.max(0.0) + residual::Z95 * se,
+                (se / white).powi(2).max(1.0),
+            ));
+        }
+        if r.play.abs() > AT_ZERO * r.travel {
+            return None;
+        }
+        let n_fit = self.p.n_fit;
+        let residuals: Vec<f64> = self.p.y[..n_fit]
+            .iter()
+            .zip(&r.sim.y)
+            .map(|(a, b)| a - b)
+            .collect();
+        let inflation = long_run_inflation(&residuals);
+        reasons.push(format!(
+            "the gap sits at zero, the lower bound of its fit, where the record gives it no standard error: \
+             the bound is read on the profile alone, from {:.0}% of the travel up, with the residual variance \
+             inflated {:.2} times for the residuals' autocorrelation",
+            100.0 * MIN_PLAY_SHARE,
+            inflation
+        ));
+        Some((MIN_PLAY_SHARE * r.travel, inflation))
     }
 
     /// The answer with its numbers, its sentence and, for `undetermined`, the experiment.
@@ -1148,6 +1183,31 @@ mod tests {
         assert!(!slips.contains("a dead zone inside the spring"), "{slips}");
     }
 
+    /// Samples of [`paper_gap_record`], and where its fit part ends.
+    const RECORD: (usize, usize) = (2000, 1400);
+
+    /// A record of the paper's linear block with equal slopes and a gap of `c` each side (noise 0.02 drawn
+    /// with `seed`), its input scaled by `held_scale` on the held-out part: the input, the output and the
+    /// true model.
+    fn paper_gap_record(c: f64, seed: u64, held_scale: f64) -> (Vec<f64>, Vec<f64>, EffectModel) {
+        use crate::diagnose::fit::model::BaseModel;
+        use crate::diagnose::fit::model::Rest;
+        use crate::diagnose::fit::model::tests::{input, paper_base, with_noise};
+        let (n, n_fit) = RECORD;
+        let mut u = input(n);
+        u[n_fit..].iter_mut().for_each(|v| *v *= held_scale);
+        let truth = EffectModel::plain(BaseModel {
+            c1: c,
+            c2: c,
+            m2: 1.0,
+            ..paper_base()
+        });
+        let sim = truth
+            .simulate(&u, Rest::ZERO, n, 1e6)
+            .expect("the model runs");
+        (u, with_noise(&sim.y, 0.02, seed), truth)
+    }
+
     /// A fit that stopped with a spurious gap is not the basis of the verdict: on a record of the paper's
     /// linear block with no gap (noise 0.02), a "final model" with a gap of 1.0 left open predicts the held-out
     /// part clearly worse than its zero-gap twin; the verdict stands on the structure refitted from the
@@ -1156,22 +1216,8 @@ mod tests {
     #[test]
     fn a_gap_model_worse_than_its_twin_is_refitted_from_the_twin() {
         use crate::diagnose::fit::lm::LmOptions;
-        use crate::diagnose::fit::model::BaseModel;
-        use crate::diagnose::fit::model::Rest;
-        use crate::diagnose::fit::model::tests::{input, paper_base, with_noise};
-        let n = 2000;
-        let u = input(n);
-        let truth = EffectModel::plain(BaseModel {
-            c1: 0.0,
-            c2: 0.0,
-            m2: 1.0,
-            ..paper_base()
-        });
-        let sim = truth
-            .simulate(&u, Rest::ZERO, n, 1e6)
-            .expect("the model runs");
-        let y = with_noise(&sim.y, 0.02, 7);
-        let p = Problem::new(&u, &y, 1400, LmOptions::default());
+        let (u, y, truth) = paper_gap_record(0.0, 7, 1.0);
+        let p = Problem::new(&u, &y, RECORD.1, LmOptions::default());
         let mut stuck = truth.clone();
         (stuck.base.c1, stuck.base.c2) = (0.5, 0.5);
         let first = read(&p, &stuck, FINAL_MODEL, Chosen::OnFitPart).expect("it runs");
@@ -1200,24 +1246,9 @@ mod tests {
     #[test]
     fn a_quiet_held_out_part_tests_no_claim() {
         use crate::diagnose::fit::lm::LmOptions;
-        use crate::diagnose::fit::model::BaseModel;
-        use crate::diagnose::fit::model::Rest;
-        use crate::diagnose::fit::model::tests::{input, paper_base, with_noise};
-        let (n, n_fit) = (2000, 1400);
-        let truth = EffectModel::plain(BaseModel {
-            c1: 0.5,
-            c2: 0.5,
-            m2: 1.0,
-            ..paper_base()
-        });
         let verdict = |quiet: f64| {
-            let mut u = input(n);
-            u[n_fit..].iter_mut().for_each(|v| *v *= quiet);
-            let sim = truth
-                .simulate(&u, Rest::ZERO, n, 1e6)
-                .expect("the model runs");
-            let y = with_noise(&sim.y, 0.02, 3);
-            let p = Problem::new(&u, &y, n_fit, LmOptions::default());
+            let (u, y, truth) = paper_gap_record(0.5, 3, quiet);
+            let p = Problem::new(&u, &y, RECORD.1, LmOptions::default());
             assess(&p, &truth, Depth::Full)
         };
         let quiet = verdict(0.01);
@@ -1230,6 +1261,41 @@ mod tests {
         let said = quiet.reasons.join(" | ");
         assert!(said.contains("range 1.0% of the fit part's"), "{said}");
         assert_eq!(verdict(1.0).presence, Presence::Present);
+    }
+
+    /// A gap that sits at zero, the lower bound of its fit, has no standard error, and the record still
+    /// rules out a play: on the paper's linear block with no play (noise 0.02), the bound is read on the
+    /// profile from 2% of the travel up and holds within a quarter of the travel; a gap away from zero with
+    /// no standard error gives no bound.
+    #[test]
+    fn a_gap_at_zero_is_bounded_on_its_profile_alone() {
+        use crate::diagnose::fit::lm::LmOptions;
+        let (u, y, truth) = paper_gap_record(0.0, 11, 1.0);
+        let p = Problem::new(&u, &y, RECORD.1, LmOptions::default());
+        let bound_of = |m: &EffectModel| {
+            let mut r = read(&p, m, FINAL_MODEL, Chosen::OnFitPart).expect("it runs");
+            (r.se, r.se_white) = (None, None);
+            let cx = Context {
+                p: &p,
+                r: &r,
+                play_free: &[],
+                reversals: [0, 0],
+                depth: Depth::Full,
+            };
+            let mut reasons = Vec::new();
+            (cx.bound(&mut reasons), reasons.join(" | "), r.travel)
+        };
+        let (bound, said, travel) = bound_of(&truth);
+        let bound = bound.unwrap_or_else(|| panic!("no bound: {said}"));
+        assert!(
+            bound >= MIN_PLAY_SHARE * travel && bound <= MAX_BOUND_SHARE * travel,
+            "{bound} {said}"
+        );
+        assert!(said.contains("the gap sits at zero"), "{said}");
+        let mut open = truth.clone();
+        (open.base.c1, open.base.c2) = (0.25, 0.25);
+        let (bound, said, _) = bound_of(&open);
+        assert!(bound.is_none(), "{said}");
     }
 
     /// The first line never prints a gap of zero or less as a play's size; a claim is headlined as one, an
