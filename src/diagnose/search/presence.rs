@@ -595,6 +595,27 @@ pub fn reversal_turns(x: &[f64], h: f64) -> Vec<usize> {
     turns
 }
 
+/// The conditions [`Context::decide`] checked, each true where it holds.
+struct Conditions {
+    /// The held-out part is excited like the fit part.
+    fair: bool,
+    impossible: bool,
+    /// The gap beats every play-free model on the held-out part.
+    gains: bool,
+    significant: bool,
+    crossed: bool,
+    /// The record tells the friction element from the gap, and a slider slips.
+    identified: bool,
+    /// A friction element in the model reads as a play.
+    friction: bool,
+    /// The model with the gap predicts clearly worse than its zero-gap twin.
+    worse: bool,
+    /// A play too narrow to claim still predicts better than every play-free model.
+    narrow: bool,
+    /// Nothing spoke against `absent` (a bound was sought).
+    open: bool,
+}
+
 /// Everything the decision reads.
 struct Context<'a, 'p> {
     p: &'a Problem<'p>,
@@ -639,38 +660,57 @@ impl Context<'_, '_> {
             return self.answer(Presence::Absent, Some(b), halves);
         }
         let mut out = self.answer(Presence::Undetermined, None, halves);
+        out.undecided_by = self.undecided_by(&Conditions {
+            fair,
+            impossible,
+            gains,
+            significant,
+            crossed,
+            identified,
+            friction,
+            worse,
+            narrow,
+            open,
+        });
+        out
+    }
+
+    /// What kept an `undetermined` answer from `present` and from `absent`, in short phrases: each failed
+    /// condition of `c` that the answer's reasons explain (the claim's later conditions only where its
+    /// earlier ones held).
+    fn undecided_by(&self, c: &Conditions) -> Vec<String> {
         let [fit, held] = self.reversals;
-        let claim = significant && gains && !impossible;
-        out.undecided_by = [
+        let claim = c.fair && c.significant && c.gains && !c.impossible;
+        [
             (
-                !fair,
+                !c.fair,
                 "the input barely moves on the held-out part, which so tests no claim (see the reasons)"
                     .to_string(),
             ),
-            (impossible, "the estimate is impossible for a play (see the reasons)".into()),
+            (c.impossible, "the estimate is impossible for a play (see the reasons)".into()),
             (
-                gains && !significant,
+                c.gains && !c.significant,
                 "the gap helps on the held-out part but is not significantly above zero".into(),
             ),
-            (!gains && significant, self.two_explanations()),
+            (!c.gains && c.significant, self.two_explanations()),
             (
-                narrow,
+                c.narrow,
                 "a play too narrow to claim predicts the held-out part better than every play-free model".into(),
             ),
             (
-                open,
+                c.open,
                 "no bound on the play could be established (see the reasons)".into(),
             ),
             (
-                worse,
+                c.worse,
                 "the model with the gap predicts worse than without it: no bound is read from its fit".into(),
             ),
             (
-                friction,
+                c.friction,
                 "the friction element reads as a play: the record cannot tell them apart".into(),
             ),
             (
-                claim && !crossed,
+                claim && !c.crossed,
                 format!(
                     "too few reversals cross the play ({fit} on the fit part, {held} held out; \
                      {MIN_REVERSALS} and {MIN_HELDOUT_REVERSALS}, or {FEW_REVERSALS} and \
@@ -678,20 +718,19 @@ impl Context<'_, '_> {
                 ),
             ),
             (
-                claim && crossed && !identified,
+                claim && c.crossed && !c.identified,
                 "the record does not tell the friction element from the gap, or its gap from a dead zone \
                  (see the reasons)"
                     .into(),
             ),
             (
-                claim && crossed && identified,
+                claim && c.crossed && c.identified,
                 "the two halves of the fit part do not confirm the play (see the reasons)".into(),
             ),
         ]
         .into_iter()
         .filter_map(|(on, why)| on.then_some(why))
-        .collect();
-        out
+        .collect()
     }
 
     /// Where the gap is significant on the fit part but does not beat every play-free model held out: the
@@ -1292,6 +1331,11 @@ mod tests {
         assert_eq!(quiet.presence, Presence::Undetermined);
         assert!(
             quiet.undecided_by[0].contains("barely moves"),
+            "{:?}",
+            quiet.undecided_by
+        );
+        assert!(
+            !quiet.undecided_by.iter().any(|w| w.contains("halves")),
             "{:?}",
             quiet.undecided_by
         );
