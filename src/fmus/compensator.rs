@@ -182,6 +182,22 @@ mod tests {
         assert!(fmu.get(Var::V).as_real().is_finite());
     }
 
+    /// A restored state is checked: an initialised compensator's own state passes; a sample time of zero or
+    /// below, or a non-finite one, is refused.
+    #[test]
+    fn a_restored_state_needs_a_positive_sample_time() {
+        let mut fmu = CompensatorFmu::new();
+        fmu.exit_initialization().unwrap();
+        assert_eq!(fmu.check_restored(), Ok(()));
+        for ts in [0.0, -0.01, f64::NAN, f64::INFINITY] {
+            let mut forged = CompensatorFmu::new();
+            forged.exit_initialization().unwrap();
+            forged.ts = ts;
+            let e = forged.check_restored().unwrap_err();
+            assert!(e.contains("Ts"), "{ts}: {e}");
+        }
+    }
+
     #[test]
     fn a_negative_smoothing_is_refused_at_initialisation() {
         let mut fmu = CompensatorFmu::new();

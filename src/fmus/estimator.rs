@@ -467,6 +467,50 @@ mod tests {
         }
     }
 
+    /// With `refine`, past the warm-up, on the paper's plant with a little noise: the last sample's
+    /// prediction, error and update flag and the standard error of every entry (na = 2, nb = 1) are the
+    /// library's refined estimator's on the same samples.
+    #[test]
+    fn refined_outputs_are_the_library_estimators() {
+        let u = crate::identify::mrgia::paper_input(3 * crate::identify::oe::online::WARMUP, 3);
+        // Noise (a fixed pseudo-random sequence) gives the fit a residual, so standard errors.
+        let y: Vec<f64> = crate::plant::Plant::simulate(PlantParams::PAPER, &u)
+            .unwrap()
+            .iter()
+            .enumerate()
+            .map(|(k, o)| o.w + 0.02 * ((k * 7919 % 1000) as f64 / 1000.0 - 0.5))
+            .collect();
+        let mut fmu = EstimatorFmu::new();
+        fmu.set(Var::Refine, Value::Boolean(true));
+        fmu.set(Var::Nb, Value::Integer(1));
+        feed(&mut fmu, &u, &y);
+        let mut lib = Running::new(MrgiaConfig::paper(2, 1, 1), true).unwrap();
+        for (uk, yk) in u.iter().zip(&y) {
+            lib.update(*uk, *yk);
+        }
+        let last = lib.last();
+        assert_eq!(fmu.get(Var::YHat), Value::Real(last.y_hat));
+        assert_eq!(fmu.get(Var::E), Value::Real(last.e));
+        assert_eq!(fmu.get(Var::Updating), Value::Boolean(last.updating));
+        assert!(last.y_hat != 0.0);
+        // The estimate's entries [a1, a2, b0, b1, m2, c1, c2], each with its own standard error.
+        let se_vars = [
+            Var::A1Se,
+            Var::A2Se,
+            Var::B0Se,
+            Var::B1Se,
+            Var::M2Se,
+            Var::C1Se,
+            Var::C2Se,
+        ];
+        let se: Vec<f64> = (0..se_vars.len()).map(|i| lib.std_err_at(i)).collect();
+        assert!(se.iter().all(|v| *v > 0.0), "{se:?}");
+        assert!((1..se.len()).all(|i| !se[..i].contains(&se[i])), "{se:?}");
+        for (var, value) in se_vars.into_iter().zip(se) {
+            assert_eq!(fmu.get(var), Value::Real(value), "{var:?}");
+        }
+    }
+
     /// The orders, the delay and the floor on rho set as parameters are the running estimator's, also with
     /// `recommended` (which replaces the convergence settings but keeps rho_min): its estimates are the
     /// library's with those settings. rho_min = 0.3 binds from sample 123 with the paper's exponent and
@@ -511,6 +555,7 @@ mod tests {
     }
 
     /// `wear_reset` true for one sample clears the latched alarm and onset; a growth that goes on alarms again.
+    /// With Ts 0.01 the onset is read in seconds (samples times Ts).
     #[test]
     fn wear_reset_clears_the_latched_alarm() {
         let plant = PlantParams::PAPER;
@@ -520,6 +565,8 @@ mod tests {
         };
         let mut sc = Scenario::new(plant, noise_std(plant, 20.0), 1, change);
         let mut fmu = EstimatorFmu::new();
+        let ts = 0.01;
+        fmu.set(Var::Ts, Value::Real(ts));
         fmu.set(Var::Monitor, Value::Boolean(true));
         fmu.set(Var::Recommended, Value::Boolean(true));
         fmu.exit_initialization().unwrap();
@@ -539,6 +586,9 @@ mod tests {
             alarm(&fmu) && k > 5000,
             "no alarm after the step ({k} samples)"
         );
+        // The onset is a time, sample k at k Ts: between the start and the alarm, in seconds.
+        let onset = fmu.get(Var::WearOnset).as_real();
+        assert!(onset > 0.0 && onset <= k as f64 * ts, "{onset} {k}");
         fmu.set(Var::WearReset, Value::Boolean(true));
         sample(&mut fmu);
         assert!(!alarm(&fmu));
