@@ -194,4 +194,27 @@ mod tests {
         assert_eq!(l.instants_reached(0.1, 1.7, ulp), 0);
         assert_eq!(l.instants_reached(0.1, 1.7, 0.05), 1);
     }
+
+    /// An end beyond every sample count a u64 holds saturates the count instead of wrapping it.
+    #[test]
+    fn instants_beyond_the_counter_saturate() {
+        let l = LayerState::new(1);
+        assert_eq!(l.instants_reached(1.0, 1e30, 1.0), u64::MAX);
+    }
+
+    /// A clock before its stop time or at it passes the check; one beyond it by more than the time tolerance
+    /// does not.
+    #[test]
+    fn a_clock_after_the_stop_time_is_inconsistent() {
+        let mut l = LayerState::new(1);
+        l.stop_time = Some(10.0);
+        (l.samples, l.time) = (50, 5.0);
+        assert_eq!(l.check_clock(0.1), Ok(()));
+        // A step may end at the stop time itself.
+        (l.samples, l.time) = (20, 10.0);
+        assert_eq!(l.check_clock(0.5), Ok(()));
+        (l.samples, l.time) = (110, 11.0);
+        let e = l.check_clock(0.1).unwrap_err();
+        assert!(e.contains("after its stop_time 10"), "{e}");
+    }
 }

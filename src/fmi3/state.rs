@@ -271,6 +271,10 @@ mod tests {
         assert!(Call::Reset.allowed_in(State::Error));
         assert!(!Call::Reset.allowed_in(State::Fatal));
         assert!(!Call::Terminate.allowed_in(State::InitializationMode));
+        // fmi3GetVersion needs no instance and is refused only after a fatal error.
+        assert!(Call::GetVersion.allowed_in(State::StartEnd));
+        assert!(Call::GetVersion.allowed_in(State::StepComplete));
+        assert!(!Call::GetVersion.allowed_in(State::Fatal));
     }
 
     #[test]
