@@ -415,13 +415,15 @@ mod tests {
     use crate::identify::oe::online::monitor::study::{Change, Scenario, noise_std};
     use crate::plant::PlantParams;
 
-    /// 400 samples of the paper's plant (noise-free backlash output).
-    fn paper_samples() -> (Vec<f64>, Vec<f64>) {
-        let u = crate::identify::mrgia::paper_input(400, 3);
+    /// `n` samples of the paper's plant: the backlash output plus `noise` times a fixed pseudo-random
+    /// sequence in [-0.5, 0.5) (none for 0).
+    fn paper_samples(n: usize, noise: f64) -> (Vec<f64>, Vec<f64>) {
+        let u = crate::identify::mrgia::paper_input(n, 3);
         let y = crate::plant::Plant::simulate(PlantParams::PAPER, &u)
             .unwrap()
             .iter()
-            .map(|o| o.w)
+            .enumerate()
+            .map(|(k, o)| o.w + noise * ((k * 7919 % 1000) as f64 / 1000.0 - 0.5))
             .collect();
         (u, y)
     }
@@ -446,7 +448,7 @@ mod tests {
     /// play c1 + c2, the numbers of the library's MRGIA run on the same samples with the same settings.
     #[test]
     fn outputs_are_the_estimate_within_the_orders() {
-        let (u, y) = paper_samples();
+        let (u, y) = paper_samples(400, 0.0);
         let mut fmu = EstimatorFmu::new();
         feed(&mut fmu, &u, &y);
         let t = library_theta(MrgiaConfig::paper(2, 0, 1), &u, &y);
@@ -472,14 +474,8 @@ mod tests {
     /// library's refined estimator's on the same samples.
     #[test]
     fn refined_outputs_are_the_library_estimators() {
-        let u = crate::identify::mrgia::paper_input(3 * crate::identify::oe::online::WARMUP, 3);
-        // Noise (a fixed pseudo-random sequence) gives the fit a residual, so standard errors.
-        let y: Vec<f64> = crate::plant::Plant::simulate(PlantParams::PAPER, &u)
-            .unwrap()
-            .iter()
-            .enumerate()
-            .map(|(k, o)| o.w + 0.02 * ((k * 7919 % 1000) as f64 / 1000.0 - 0.5))
-            .collect();
+        // Noise gives the fit a residual, so standard errors.
+        let (u, y) = paper_samples(3 * crate::identify::oe::online::WARMUP, 0.02);
         let mut fmu = EstimatorFmu::new();
         fmu.set(Var::Refine, Value::Boolean(true));
         fmu.set(Var::Nb, Value::Integer(1));
@@ -517,7 +513,7 @@ mod tests {
     /// from sample 4 with the recommended one.
     #[test]
     fn parameters_reach_the_running_estimator() {
-        let (u, y) = paper_samples();
+        let (u, y) = paper_samples(400, 0.0);
         for recommended in [false, true] {
             let mut fmu = EstimatorFmu::new();
             fmu.set(Var::Na, Value::Integer(1));

@@ -461,13 +461,8 @@ pub fn combination_variance<R: Residuals + ?Sized>(
         .map(|t| (0..p).map(|j| v[j] * jac[j * n + t]).sum::<f64>() * r[t])
         .collect();
     let lags = hac_lags(&r);
-    let gamma = |l: usize| (l..n).map(|t| score[t] * score[t - l]).sum::<f64>();
-    let mut sandwich = gamma(0);
-    for l in 1..=lags {
-        sandwich += 2.0 * (1.0 - l as f64 / (lags + 1) as f64) * gamma(l);
-    }
     // Negative long-run correlation cannot make an estimate more precise than white residuals would.
-    let sandwich = sandwich.max(classical);
+    let sandwich = bartlett_sum(&score, lags).max(classical);
     Some(CombinationVariance {
         classical,
         sandwich,
@@ -546,18 +541,21 @@ fn solve_determined(
 /// ones, `1 + 2 sum of weighted autocorrelations`), at least 1 (negative correlation is not credited). 1 for
 /// residuals that are all zero.
 pub fn long_run_inflation(r: &[f64]) -> f64 {
-    let n = r.len();
     let c0: f64 = r.iter().map(|v| v * v).sum();
     if c0 <= 0.0 {
         return 1.0;
     }
-    let lags = hac_lags(r);
-    let gamma = |l: usize| (l..n).map(|t| r[t] * r[t - l]).sum::<f64>();
-    let lrv = c0
-        + (1..=lags)
-            .map(|l| 2.0 * (1.0 - l as f64 / (lags + 1) as f64) * gamma(l))
-            .sum::<f64>();
-    (lrv / c0).max(1.0)
+    (bartlett_sum(r, hac_lags(r)) / c0).max(1.0)
+}
+
+/// The Bartlett (Newey-West) long-run sum of the series `s` over `lags` lags: `sum s_t^2` plus twice each
+/// lag's autocovariance sum, weighted `1 - l / (lags + 1)`.
+fn bartlett_sum(s: &[f64], lags: usize) -> f64 {
+    let n = s.len();
+    let gamma = |l: usize| (l..n).map(|t| s[t] * s[t - l]).sum::<f64>();
+    (1..=lags).fold(gamma(0), |sum, l| {
+        sum + 2.0 * (1.0 - l as f64 / (lags + 1) as f64) * gamma(l)
+    })
 }
 
 /// The Bartlett window for residuals `r`: out to the first lag where their autocorrelation falls below

@@ -42,6 +42,15 @@ pub(super) struct Imitator {
     effect: &'static str,
 }
 
+/// Fit-part errors `y - y_model` of a simulation.
+pub(super) fn fit_errors(p: &Problem, sim: &Simulation) -> Vec<f64> {
+    p.y[..p.n_fit]
+        .iter()
+        .zip(&sim.y)
+        .map(|(a, b)| a - b)
+        .collect()
+}
+
 /// Held-out errors `y - y_model` of a simulation.
 pub(super) fn heldout_errors(p: &Problem, sim: &Simulation) -> Vec<f64> {
     p.y[p.n_fit..]
@@ -87,11 +96,7 @@ pub(super) fn imitators(
     current: &EffectModel,
     name: &str,
 ) -> Vec<Imitator> {
-    let residual: Vec<f64> = p.y[..p.n_fit]
-        .iter()
-        .zip(&sim.y)
-        .map(|(a, b)| a - b)
-        .collect();
+    let residual = fit_errors(p, sim);
     let y_fit = &p.y[..p.n_fit];
     // The clipping levels the diagnosis's rounds start saturation from: the fit part's extremes.
     let (lo, hi, _) = residual::clipping(y_fit);

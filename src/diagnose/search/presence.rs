@@ -27,7 +27,7 @@ use serde::Serialize;
 
 pub use super::alternatives::PlayFree;
 use super::alternatives::{
-    Fitted, best_rival, better_by, clearly_better, heldout_errors, imitators, play_free,
+    Fitted, best_rival, better_by, clearly_better, fit_errors, heldout_errors, imitators, play_free,
 };
 use crate::diagnose::effects::friction;
 use crate::diagnose::fit::lm::long_run_inflation;
@@ -1124,13 +1124,7 @@ impl Context<'_, '_> {
         if r.play.abs() > AT_ZERO * r.travel {
             return None;
         }
-        let n_fit = self.p.n_fit;
-        let residuals: Vec<f64> = self.p.y[..n_fit]
-            .iter()
-            .zip(&r.sim.y)
-            .map(|(a, b)| a - b)
-            .collect();
-        let inflation = long_run_inflation(&residuals);
+        let inflation = long_run_inflation(&fit_errors(self.p, &r.sim));
         reasons.push(format!(
             "the gap sits at zero, the lower bound of its fit, where the record gives it no standard error: \
              the bound is read on the profile alone, from {:.0}% of the travel up, with the residual variance \
