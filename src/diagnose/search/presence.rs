@@ -757,11 +757,18 @@ impl Context<'_, '_> {
 
     /// Whether the held-out part excites the record as the fit part does: its input's standard deviation
     /// and range at least [`POOR_EXCITATION`] of the fit part's (the rule of the diagnosis's warning); in
-    /// words where they are not.
+    /// words where they are not, or where the fit part's input is constant (no ratio).
     fn fair_test(&self, reasons: &mut Vec<String>) -> bool {
         let (s, r) = excitation(self.p.u, self.p.n_fit);
         let fair = s >= POOR_EXCITATION && r >= POOR_EXCITATION;
-        if !fair {
+        if !(s.is_finite() && r.is_finite()) {
+            // `excitation`'s NaN: the fit part's input is constant.
+            reasons.push(
+                "the input does not move on the fit part, so no held-out comparison tests a play or its \
+                 absence"
+                    .into(),
+            );
+        } else if !fair {
             reasons.push(format!(
                 "the input's standard deviation on the held-out part is {:.1}% and its range {:.1}% of the fit \
                  part's (at least {:.0}% each is needed): the models' held-out errors are compared where \
