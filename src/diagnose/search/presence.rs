@@ -845,10 +845,10 @@ impl Context<'_, '_> {
         } else {
             format!(
                 "the final model's friction element is itself a play acting on the output (slip levels {} and \
-                 -{}: a loop of width {} in its spring's units): the record cannot tell that friction from \
+                 {}: a loop of width {} in its spring's units): the record cannot tell that friction from \
                  play, so no play is not an answer here",
                 g(f.f_plus),
-                g(f.f_minus),
+                g(-f.f_minus),
                 g((f.f_plus + f.f_minus) / f.k_e)
             )
         });

@@ -128,6 +128,12 @@ fn said_play(s: &SplitVerdict) -> String {
             g(s.play),
             s.reversals[1]
         )
+    } else if s.presence == Presence::Undetermined && !s.undecided_by.is_empty() {
+        format!(
+            "{}: {}",
+            g(s.play),
+            s.undecided_by.join("; ").replace(" (see the reasons)", "")
+        )
     } else {
         g(s.play)
     }
@@ -307,6 +313,30 @@ mod tests {
             assert!(s.verdict.contains(&format!("{} at 0.80", other.word())));
             assert_eq!(s.splits.len(), 3);
         }
+    }
+
+    /// A neighbour that is undetermined says why in the split's reasons, without pointing at reasons the
+    /// answer does not carry (the neighbour's own).
+    #[test]
+    fn an_undetermined_neighbour_says_why() {
+        let mut other = at(0.8, Presence::Undetermined);
+        other.undecided_by =
+            vec!["two explanations: the model with a play (see the reasons)".into()];
+        let s = judged(
+            claim(Presence::Present),
+            vec![
+                at(0.6, Presence::Present),
+                at(0.7, Presence::Present),
+                other,
+            ],
+        );
+        assert!(
+            s.verdict.contains(
+                "undetermined at 0.80 (play 1.5000: two explanations: the model with a play)"
+            ),
+            "{}",
+            s.verdict
+        );
     }
 
     #[test]
