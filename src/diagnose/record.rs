@@ -27,12 +27,17 @@ pub const POOR_EXCITATION: f64 = 0.25;
 /// The input's excitation on the held-out part over the fit part's at the split `n_fit`: the ratios of
 /// standard deviation and of range (`NaN` where the fit part's input is constant).
 pub fn excitation(u: &[f64], n_fit: usize) -> (f64, f64) {
+    let (fit, held) = u.split_at(n_fit);
+    excitation_of(fit, held)
+}
+
+/// [`excitation`] of the input's held-out samples `held` over its fit samples `fit`.
+pub fn excitation_of(fit: &[f64], held: &[f64]) -> (f64, f64) {
     let range = |v: &[f64]| {
         v.iter().fold(f64::NEG_INFINITY, |m, a| m.max(*a))
             - v.iter().fold(f64::INFINITY, |m, a| m.min(*a))
     };
     let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { f64::NAN };
-    let (fit, held) = u.split_at(n_fit);
     (
         ratio(std_dev(held), std_dev(fit)),
         ratio(range(held), range(fit)),

@@ -56,6 +56,9 @@ pub(crate) struct Problem<'a> {
     /// The input level at which every simulation starts at rest.
     pub rest: Rest,
     pub n_fit: usize,
+    /// The held-out part is samples `held_from..`: `n_fit`, or later where the fit part is a window of the
+    /// record's ([`Problem::verdict_window`]).
+    pub held_from: usize,
     /// Exploration uses samples `0..n_explore` (at most the fit part).
     pub n_explore: usize,
     pub limit: f64,
@@ -79,6 +82,7 @@ impl<'a> Problem<'a> {
             y,
             rest: Rest::ZERO,
             n_fit,
+            held_from: n_fit,
             n_explore: n_fit.min(EXPLORE_SAMPLES),
             limit: sim_limit(u, y),
             time_scale: n_fit as f64,
@@ -98,12 +102,31 @@ impl<'a> Problem<'a> {
         }
     }
 
-    /// The same record split elsewhere (fit part `0..n_fit`), its scales kept: a model fitted on `self`
-    /// means the same on it (a drift's rate is per the same time scale), so it can be refitted from there.
-    pub fn resplit(&self, n_fit: usize) -> Self {
+    /// The same record split elsewhere (held out from `held_from` on, fit part `0..held_from`), its scales
+    /// kept: a model fitted on `self` means the same on it (a drift's rate is per the same time scale), so it
+    /// can be refitted from there. Where `self` fits on a window ([`Problem::verdict_window`]), the window
+    /// stays the fit part as far as it lies before the new held-out part.
+    pub fn resplit(&self, held_from: usize) -> Self {
+        let n_fit = if self.n_fit < self.held_from {
+            self.n_fit.min(held_from)
+        } else {
+            held_from
+        };
         Self {
             n_fit,
+            held_from,
             n_explore: n_fit.min(EXPLORE_SAMPLES),
+            ..self.clone()
+        }
+    }
+
+    /// The record as the verdict on play judges it: on a long record (exploration on a window of the fit
+    /// part) that window is the fit part, and the held-out part stays where it is, so that every model the
+    /// verdict compares is fitted on the same first [`EXPLORE_SAMPLES`] samples and scored on the same
+    /// held-out part (like with like, at a window's cost); `self` elsewhere.
+    pub fn verdict_window(&self) -> Self {
+        Self {
+            n_fit: self.n_explore,
             ..self.clone()
         }
     }
@@ -812,6 +835,46 @@ mod tests {
         assert_eq!(long.n_explore, EXPLORE_SAMPLES);
         assert_eq!(p.exploration().max_iter, EXPLORE_ITER);
         assert_eq!(p.exploration().max_evals, p.lm.max_evals);
+    }
+
+    /// The verdict's window: on a long record the fit part is the exploration window and the held-out part
+    /// stays where the split put it; moved to another split, the window stays the fit part as far as it
+    /// lies before the new held-out part; a short record is judged as it is.
+    #[test]
+    fn the_verdict_fits_on_the_window_and_holds_out_the_split_s_rest() {
+        let n = 3 * EXPLORE_SAMPLES;
+        let (u, y) = (vec![0.0; n], vec![0.0; n]);
+        let p = Problem::new(&u, &y, 2 * EXPLORE_SAMPLES, LmOptions::default());
+        assert_eq!(p.held_from, p.n_fit);
+        let v = p.verdict_window();
+        assert_eq!(
+            (v.n_fit, v.n_explore, v.held_from, v.time_scale),
+            (
+                EXPLORE_SAMPLES,
+                EXPLORE_SAMPLES,
+                2 * EXPLORE_SAMPLES,
+                p.time_scale
+            )
+        );
+        assert!(!v.windowed());
+        let later = v.resplit(2 * EXPLORE_SAMPLES + 7);
+        assert_eq!(
+            (later.n_fit, later.held_from),
+            (EXPLORE_SAMPLES, 2 * EXPLORE_SAMPLES + 7)
+        );
+        let early = v.resplit(EXPLORE_SAMPLES - 9);
+        assert_eq!(
+            (early.n_fit, early.held_from),
+            (EXPLORE_SAMPLES - 9, EXPLORE_SAMPLES - 9)
+        );
+        let whole = p.resplit(EXPLORE_SAMPLES + 3);
+        assert_eq!(
+            (whole.n_fit, whole.held_from),
+            (EXPLORE_SAMPLES + 3, EXPLORE_SAMPLES + 3)
+        );
+        let short = Problem::new(&u[..900], &y[..900], 600, LmOptions::default());
+        let same = short.verdict_window();
+        assert_eq!((same.n_fit, same.held_from), (600, 600));
     }
 
     /// The plain model's starts on y = 2 u(k-1) + 3 (no dynamics, nb = 0): MRGIA's, the least-squares start

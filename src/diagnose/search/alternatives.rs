@@ -53,9 +53,9 @@ pub(super) fn fit_errors(p: &Problem, sim: &Simulation) -> Vec<f64> {
 
 /// Held-out errors `y - y_model` of a simulation.
 pub(super) fn heldout_errors(p: &Problem, sim: &Simulation) -> Vec<f64> {
-    p.y[p.n_fit..]
+    p.y[p.held_from..]
         .iter()
-        .zip(&sim.y[p.n_fit..])
+        .zip(&sim.y[p.held_from..])
         .map(|(a, b)| a - b)
         .collect()
 }
@@ -219,6 +219,28 @@ mod tests {
         };
         let found = imitators(p, &last, &sim, &plain, "zero-gap");
         (last, found)
+    }
+
+    /// The held-out errors start where the held-out part does, not where the fit part ends: on the verdict's
+    /// window of a long record the samples between them are neither fitted nor scored; the fit errors are
+    /// the window's.
+    #[test]
+    fn held_out_errors_start_at_the_held_out_part() {
+        use crate::diagnose::fit::problem::EXPLORE_SAMPLES;
+        let n = EXPLORE_SAMPLES + 3000;
+        let (u, sim) = paper_record(n);
+        let y = with_noise(&sim.y, 0.05, 4);
+        let p = Problem::new(&u, &y, n - 1000, LmOptions::default());
+        let v = p.verdict_window();
+        let model = EffectModel::plain(crate::diagnose::fit::model::tests::paper_base());
+        let s = model.simulate(&u, v.rest, n, v.limit).unwrap();
+        let held = heldout_errors(&v, &s);
+        assert_eq!(held.len(), 1000);
+        assert_eq!(held[0], y[n - 1000] - s.y[n - 1000]);
+        assert_eq!(heldout_errors(&p, &s), held);
+        let fit = fit_errors(&v, &s);
+        assert_eq!(fit.len(), EXPLORE_SAMPLES);
+        assert_eq!(fit[..], fit_errors(&p, &s)[..EXPLORE_SAMPLES]);
     }
 
     /// On records of the paper's model (play 1.5) clipped at the median of its output, judged from

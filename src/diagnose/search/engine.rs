@@ -122,8 +122,7 @@ pub fn diagnose_with_progress(
         fit_plain(&problem, s, cfg.restarts, cfg.seed, &linear).ok_or(DiagnoseError::NoFit)?;
     let mut d = rounds_from(&mut problem, cfg, base, &linear, choice, &initial)?;
     extend(&problem, cfg, &mut d);
-    let first = presence::assess(&problem, d.final_model(), presence::Depth::Full);
-    d.backlash = stability::over_splits(&problem, d.final_model(), cfg.fit_fraction, first);
+    d.backlash = judge_play(&problem, d.final_model(), cfg.fit_fraction);
     let explained = {
         let last = d.steps().last().map_or(&d.base_sim.y, |c| &c.output);
         Explained::of(u, y, last, d.n_fit)
@@ -133,6 +132,36 @@ pub fn diagnose_with_progress(
     d.initial.input += op.u;
     d.restore_outputs();
     Ok(d)
+}
+
+/// The verdict on play for the final model `last` of `p` (split at the fit fraction `fraction`), checked at
+/// the neighbouring splits. On a long record (fits explored on a window of the fit part) every model the
+/// verdict compares is fitted on that window and scored on the whole held-out part ([`Problem::verdict_window`]),
+/// `last` refitted there first from where it ended: the verdict's fits then cost a window's, not the whole fit
+/// part's. Where that refit fails the verdict is judged on the whole fit part.
+fn judge_play(p: &Problem, last: &EffectModel, fraction: f64) -> presence::BacklashSupport {
+    let v = p.verdict_window();
+    let start = last.deterministic();
+    let refit = (v.n_fit < p.n_fit)
+        .then(|| v.fit(&start, std::slice::from_ref(&start), Objective::Simulation))
+        .flatten();
+    let Some((m, _)) = refit else {
+        let first = presence::assess(p, last, presence::Depth::Full);
+        return stability::over_splits(p, last, fraction, first);
+    };
+    let mut first = presence::assess(&v, &m, presence::Depth::Full);
+    first.reasons.insert(
+        0,
+        format!(
+            "the fit part has {} samples: every model compared here, the final model among them, is \
+             fitted on its first {} (like with like, at a window's cost) and scored on the whole held-out \
+             part ({} samples)",
+            p.n_fit,
+            v.n_fit,
+            p.u.len() - v.held_from
+        ),
+    );
+    stability::over_splits(&v, &m, fraction, first)
 }
 
 /// The record as a fitting problem: the fit part's length from the fit fraction, every fit bounded by the
