@@ -30,6 +30,7 @@ pub use super::alternatives::PlayFree;
 use super::alternatives::{
     Fitted, best_rival, better_by, clearly_better, fit_errors, heldout_errors, imitators, play_free,
 };
+use super::fold::Fold;
 use crate::diagnose::effects::friction;
 use crate::diagnose::fit::lm::long_run_inflation;
 use crate::diagnose::fit::model::{EffectModel, Objective, Simulation};
@@ -236,6 +237,11 @@ pub(crate) fn assess(p: &Problem, last: &EffectModel, depth: Depth) -> BacklashS
         depth,
     };
     let mut out = cx.decide(impossible, &mut reasons);
+    if out.presence == Presence::Undetermined && depth == Depth::Full {
+        // What the record looks like instead, where it is a fold (issue 55: an estimate that cannot be is
+        // said as what it is).
+        reasons.extend(Fold::of(&r.sim.x[..p.n_fit], &p.y[..p.n_fit]).map(|f| f.said()));
+    }
     out.reasons = reasons;
     out
 }
