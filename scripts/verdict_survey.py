@@ -9,7 +9,7 @@ folder of the same layout). A missing record of the default set is an error; a m
 record is skipped with a line saying so.
 
     python3 scripts/verdict_survey.py                          # seed 0, fit fraction 0.7: docs/verdict_survey.csv
-    python3 scripts/verdict_survey.py --seeds 0 1 2 --fractions 0.6 0.7 0.8 --out /tmp/survey.csv
+    python3 scripts/verdict_survey.py --seeds 0 1 2 --fractions 0.6 0.7 0.8 --out out/survey.csv
     python3 scripts/verdict_survey.py --binary PATH/backlash --records f16gvt/f16gvt_sinesweep_level7.csv
     python3 scripts/verdict_survey.py --summary-only docs/verdict_survey.csv   # the summary of a written table
 
