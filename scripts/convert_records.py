@@ -15,12 +15,25 @@ script's functions; by hand, give the files of those commits to this script to r
     python scripts/convert_records.py tanks SRC/dataBenchmark.csv Est data/tanks/tanks_est.csv
     python scripts/convert_records.py tanks SRC/dataBenchmark.csv Val data/tanks/tanks_val.csv
 
+The survey set (`python3 scripts/fetch_data.py --survey`; each folder's README gives its commands) adds a
+numeric table by column, a MAT-file's series, and the servo logs in the `t,u,y` spelling:
+
+    python scripts/convert_records.py table SRC/gas-furnace/data/gas-furnace.csv InputGasRate CO2 9 OUT.csv
+    python scripts/convert_records.py table SRC/Projeto_1/secador/dryer.dat 0 1 1 OUT.csv
+    python scripts/convert_records.py mat SRC/F16Data_SineSw_Level7.mat Force "Acceleration(1,:)" OUT.csv \
+        --dt 0.0025
+    python scripts/convert_records.py mat "SRC/.../data.mat" "rec.act_pos_mot_deg(1,:)" "rec.act_pos_se_deg(1,:)" \
+        OUT.csv --time rec.time_cont
+    python scripts/convert_records.py servo SRC/logs/motor_telemetry_comp2.csv 1 OUT.csv --spelling t
+
 Only the standard library is used.
 """
 
 import argparse
 import csv
+import dataclasses
 import json
+import re
 import struct
 import zlib
 from datetime import datetime
@@ -36,8 +49,12 @@ def seconds_since(stamp: str, start: datetime) -> float:
     return (t - start).total_seconds()
 
 
-def convert_servo(source: str, motor: int, out: str) -> int:
-    """One servo's commanded and measured position from a telemetry log; rows lacking either are dropped."""
+def convert_servo(source: str, motor: int, out: str, spelling: str = "time") -> int:
+    """One servo's commanded and measured position from a telemetry log; rows lacking either are dropped.
+    spelling "time" (data/servo) writes the header `time,u,y` and the seconds with 3 decimals; "t" (the survey
+    set) writes `t,u,y` and the seconds rounded to 1 ms with 10 significant digits (0, 0.101, ...)."""
+    if spelling not in ("time", "t"):
+        raise ValueError(f"spelling {spelling!r}: only 'time' or 't'")
     target, position = f"target pos ({motor})", f"pos ({motor})"
     with open(source, newline="") as f:
         reader = csv.DictReader(f)
@@ -49,10 +66,11 @@ def convert_servo(source: str, motor: int, out: str) -> int:
     start = datetime.fromisoformat(rows[0]["timestamp"].replace("Z", "+00:00"))
     with open(out, "w", newline="") as f:
         w = csv.writer(f, lineterminator="\n")
-        w.writerow(["time", "u", "y"])
+        w.writerow([spelling, "u", "y"])
         for r in rows:
             t = seconds_since(r["timestamp"], start)
-            w.writerow([f"{t:.3f}", int(r[target]), int(r[position])])
+            w.writerow([f"{t:.3f}" if spelling == "time" else f"{round(t, 3):.10g}", int(r[target]),
+                        int(r[position])])
     return len(rows)
 
 
@@ -131,27 +149,73 @@ def mat_elements(buf: bytes, pos: int = 0):
         pos += 8 + (size if kind == MAT_COMPRESSED else (size + 7) // 8 * 8)
 
 
-def read_mat_vectors(path: str) -> dict[str, list[float]]:
-    """Every real numeric array of a MATLAB level-5 MAT-file (not v7.3) by its name, its values in column
-    order. Only the standard library: no scipy."""
+# MATLAB array classes (the flags' low byte): 2 a struct, 6 to 15 the numeric classes (double, single and
+# the integers).
+MAT_STRUCT, MAT_NUMERIC_CLASSES = 2, range(6, 16)
+
+
+@dataclasses.dataclass(frozen=True)
+class MatArray:
+    """A real numeric MATLAB array: its dimensions and its values in column order (MATLAB's)."""
+
+    dims: tuple[int, ...]
+    values: list[float]
+
+    def row(self, i: int) -> list[float]:
+        """Row i (from 0) of a 2-D array."""
+        return self.values[i :: self.dims[0]]
+
+    def column(self, j: int) -> list[float]:
+        """Column j (from 0) of a 2-D array."""
+        return self.values[j * self.dims[0] : (j + 1) * self.dims[0]]
+
+
+def mat_matrix(payload: bytes, prefix: str, arrays: dict[str, MatArray], name: str = "") -> None:
+    """Add the real numeric arrays of one matrix element to arrays: a numeric array under its name, the fields
+    of a 1-by-1 struct as name.field (recursively); cells, characters, sparse arrays and objects are skipped."""
+    parts = list(mat_elements(payload))
+    if len(parts) < 3:
+        return  # an empty element
+    cls = struct.unpack_from("<I", parts[0][1])[0] & 0xFF
+    if cls != MAT_STRUCT and cls not in MAT_NUMERIC_CLASSES:
+        return  # an object's parts are laid out otherwise (no dimensions second)
+    dims_data = parts[1][1]
+    dims = struct.unpack(f"<{len(dims_data) // 4}i", dims_data)
+    name = name or parts[2][1].decode("ascii")
+    if cls in MAT_NUMERIC_CLASSES and len(parts) >= 4 and parts[3][0] in MAT_NUMERIC:
+        code, data = parts[3]
+        fmt = MAT_NUMERIC[code]
+        values = struct.unpack(f"<{len(data) // struct.calcsize(fmt)}{fmt}", data)
+        arrays[prefix + name] = MatArray(tuple(dims), [float(v) for v in values])
+    elif cls == MAT_STRUCT and len(parts) >= 5 and dims == (1, 1):
+        width = struct.unpack_from("<i", parts[3][1])[0]
+        names = parts[4][1]
+        fields = [names[k : k + width].split(b"\0")[0].decode("ascii") for k in range(0, len(names), width)]
+        for field, (kind, sub) in zip(fields, parts[5:]):
+            if kind == MAT_MATRIX:
+                mat_matrix(sub, f"{prefix}{name}.", arrays, field)
+
+
+def read_mat_arrays(path: str) -> dict[str, MatArray]:
+    """Every real numeric array of a MATLAB level-5 MAT-file (not v7.3) by its name, a field of a 1-by-1
+    struct as struct.field. Only the standard library: no scipy."""
     with open(path, "rb") as f:
         buf = f.read()
     if buf[126:128] != b"IM":
         raise SystemExit(f"{path}: not a little-endian MATLAB 5 MAT-file (v7.3 files are HDF5, not read here)")
-    arrays = {}
+    arrays: dict[str, MatArray] = {}
     for kind, payload in mat_elements(buf, 128):
         if kind == MAT_COMPRESSED:
             kind, payload = next(mat_elements(zlib.decompress(payload)))
-        if kind != MAT_MATRIX:
-            continue
-        parts = list(mat_elements(payload))
-        if len(parts) < 4 or parts[3][0] not in MAT_NUMERIC:
-            continue  # a cell, struct, sparse, character or empty array: not a vector of numbers
-        name = parts[2][1].decode("ascii")
-        code, data = parts[3]
-        fmt = MAT_NUMERIC[code]
-        arrays[name] = [float(v) for v in struct.unpack(f"<{len(data) // struct.calcsize(fmt)}{fmt}", data)]
+        if kind == MAT_MATRIX:
+            mat_matrix(payload, "", arrays)
     return arrays
+
+
+def read_mat_vectors(path: str) -> dict[str, list[float]]:
+    """Every real numeric array of a MATLAB level-5 MAT-file (not v7.3) by its name, its values in column
+    order (struct fields left out). Only the standard library: no scipy."""
+    return {name: a.values for name, a in read_mat_arrays(path).items() if "." not in name}
 
 
 def convert_emps(source: str, out: str) -> int:
@@ -171,6 +235,76 @@ def convert_emps(source: str, out: str) -> int:
     return len(t)
 
 
+def write_tuy(out: str, t: list[float], u: list[float], y: list[float]) -> int:
+    """`t,u,y` with a header line, every number with 10 significant digits (the survey set's form)."""
+    if not len(t) == len(u) == len(y):
+        raise SystemExit(f"{out}: t, u and y have {len(t)}, {len(u)} and {len(y)} values")
+    with open(out, "w", newline="") as f:
+        f.write("t,u,y\n")
+        for row in zip(t, u, y):
+            f.write("{:.10g},{:.10g},{:.10g}\n".format(*row))
+    return len(t)
+
+
+def sample_times(n: int, dt: float) -> list[float]:
+    """k * dt for k = 0 .. n-1 (dt 1 gives the sample index, for a source without a sample time)."""
+    return [k * dt for k in range(n)]
+
+
+def read_columns(source: str, columns: tuple[str, ...] | tuple[int, ...]) -> list[list[float]]:
+    """Columns of a numeric table: by name from a CSV file with a header line, or by index (from 0) from a
+    file of whitespace-separated numbers without one (DaISy's .dat files)."""
+    with open(source, newline="") as f:
+        if all(isinstance(c, int) for c in columns):
+            rows = [line.split() for line in f if line.strip()]
+            picks = columns
+        else:
+            reader = csv.reader(f)
+            header = [h.strip() for h in next(reader)]
+            missing = [c for c in columns if c not in header]
+            if missing:
+                raise SystemExit(f"{source}: no column {', '.join(map(str, missing))} (header {header})")
+            picks = tuple(header.index(c) for c in columns)
+            rows = [r for r in reader if any(v.strip() for v in r)]
+    return [[float(r[k]) for r in rows] for k in picks]
+
+
+def convert_table(source: str, u: str | int, y: str | int, dt: float, out: str) -> int:
+    """Two columns of a numeric table (see read_columns) as u and y, t = k * dt."""
+    us, ys = read_columns(source, (u, y))
+    return write_tuy(out, sample_times(len(us), dt), us, ys)
+
+
+def mat_series(arrays: dict[str, MatArray], spec: str, source: str) -> list[float]:
+    """The values that spec names, in MATLAB's words: `NAME` (a vector), `NAME(i,:)` (row i, from 1) or
+    `NAME(:,j)` (column j); NAME may be struct.field."""
+    m = re.fullmatch(r"([\w.]+)(?:\((\d+),:\)|\(:,(\d+)\))?", spec)
+    if not m:
+        raise ValueError(f"{spec!r}: not NAME, NAME(i,:) or NAME(:,j)")
+    name, row, column = m.groups()
+    if name not in arrays:
+        raise SystemExit(f"{source}: no numeric array {name}")
+    a = arrays[name]
+    if row:
+        return a.row(int(row) - 1)
+    return a.column(int(column) - 1) if column else a.values
+
+
+def convert_mat(source: str, u: str, y: str, out: str, dt: float | None = None, time: str | None = None) -> int:
+    """Two series of a MAT-file (mat_series's specs) as u and y; t from the series `time` less its first
+    value, or k * dt."""
+    arrays = read_mat_arrays(source)
+    us, ys = mat_series(arrays, u, source), mat_series(arrays, y, source)
+    if time is not None:
+        ts = mat_series(arrays, time, source)
+        ts = [v - ts[0] for v in ts]
+    elif dt is not None:
+        ts = sample_times(len(us), dt)
+    else:
+        raise ValueError("convert_mat needs dt or time")
+    return write_tuy(out, ts, us, ys)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="record", required=True)
@@ -178,6 +312,23 @@ def main() -> None:
     s.add_argument("source")
     s.add_argument("motor", type=int, help="the motor's number in the log's column names")
     s.add_argument("out")
+    s.add_argument("--spelling", choices=["time", "t"], default="time",
+                   help="`time` (data/servo: header time,u,y, 3 decimals) or `t` (the survey set)")
+    tb = sub.add_parser("table", help="two columns of a numeric table (CSV by column name, or whitespace-separated "
+                        "numbers by column index from 0), t = k * DT")
+    tb.add_argument("source")
+    tb.add_argument("u", help="the input's column: a name, or an index when the file has no header")
+    tb.add_argument("y", help="the output's column, likewise")
+    tb.add_argument("dt", type=float, help="sample time (1: t is the sample index)")
+    tb.add_argument("out")
+    m = sub.add_parser("mat", help="two series of a MATLAB 5 MAT-file: NAME, NAME(i,:) or NAME(:,j), struct.field")
+    m.add_argument("source")
+    m.add_argument("u")
+    m.add_argument("y")
+    m.add_argument("out")
+    when = m.add_mutually_exclusive_group(required=True)
+    when.add_argument("--dt", type=float, help="sample time: t = k * DT")
+    when.add_argument("--time", help="the series holding the time (t is it less its first value)")
     g = sub.add_parser("generator", help="the DC motor/generator record (x_cc.csv, y_cc.csv)")
     g.add_argument("x")
     g.add_argument("y")
@@ -198,7 +349,12 @@ def main() -> None:
     elif a.record == "emps":
         n = convert_emps(a.source, a.out)
     elif a.record == "servo":
-        n = convert_servo(a.source, a.motor, a.out)
+        n = convert_servo(a.source, a.motor, a.out, a.spelling)
+    elif a.record == "table":
+        u, y = (int(a.u), int(a.y)) if a.u.isdigit() and a.y.isdigit() else (a.u, a.y)
+        n = convert_table(a.source, u, y, a.dt, a.out)
+    elif a.record == "mat":
+        n = convert_mat(a.source, a.u, a.y, a.out, a.dt, a.time)
     elif a.record == "tanks":
         n = convert_tanks(a.source, a.part, a.out)
     else:

@@ -11,7 +11,9 @@ set, names another folder with the same layout to read them from.
                                                                # fetch step
 
 A README's hash table may mark a row `extra` in a third column: that record belongs to the optional set, which
-neither the default fetch nor CI needs (`python3 scripts/fetch_data.py --extra` adds it).
+neither the default fetch nor CI needs (`python3 scripts/fetch_data.py --extra` adds it). A row marked `survey`
+belongs to the survey set: further public records of other systems, for measuring the verdict on play across
+many sources (`python3 scripts/fetch_data.py --survey`; scripts/verdict_survey.py).
 """
 
 from __future__ import annotations
@@ -25,10 +27,11 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 DATA_ENV = "BACKLASH_DATA"
 FETCH_COMMAND = "python3 scripts/fetch_data.py"
 # A row of a README's hash table: `| file.csv | <64 hex digits> |`, or `| file.csv | <64 hex digits> | extra |`
-# for a record of the optional set (rows naming a source file have words before the file name and are not
-# records).
+# for a record of the optional set, `... | survey |` for one of the survey set (rows naming a source file have
+# words before the file name and are not records).
 HASH_ROW = re.compile(r"^\|\s*([\w.\-]+\.csv)\s*\|\s*([0-9a-f]{64})\s*\|(?:([^|]*)\|)?")
 EXTRA = "extra"  # the third cell that puts a record into the optional set
+SURVEY = "survey"  # the third cell that puts a record into the survey set
 
 
 class MissingRecord(FileNotFoundError):
@@ -55,10 +58,14 @@ def record_path(name: str) -> pathlib.Path:
     return path
 
 
-def manifest(readmes: pathlib.Path = ROOT / "data", extra: bool = False) -> dict[str, str]:
-    """The records of the default set (or, with extra, of the optional set), as {"folder/file.csv": sha256},
-    read from the hash tables of data/*/README.md (the one place the hashes are written). ValueError, naming
-    the README and the row, for a third cell other than empty or `extra`."""
+def manifest(readmes: pathlib.Path = ROOT / "data", extra: bool = False, survey: bool = False) -> dict[str, str]:
+    """The records of the default set (with extra, of the optional set; with survey, of the survey set), as
+    {"folder/file.csv": sha256}, read from the hash tables of data/*/README.md (the one place the hashes are
+    written). ValueError, naming the README and the row, for a third cell other than empty, `extra` or
+    `survey`."""
+    if extra and survey:
+        raise ValueError("manifest: one set at a time (extra or survey)")
+    want = SURVEY if survey else EXTRA if extra else ""
     records = {}
     for readme in sorted(readmes.glob("*/README.md")):
         for line in readme.read_text(encoding="utf-8").splitlines():
@@ -66,10 +73,10 @@ def manifest(readmes: pathlib.Path = ROOT / "data", extra: bool = False) -> dict
             if not m:
                 continue
             mark = (m.group(3) or "").strip()
-            if mark not in ("", EXTRA):
+            if mark not in ("", EXTRA, SURVEY):
                 raise ValueError(f"{readme}: the row of {m.group(1)} is marked {mark!r}; only `{EXTRA}` (the "
-                                 "optional set) or nothing (the default set) is known")
-            if (mark == EXTRA) == extra:
+                                 f"optional set), `{SURVEY}` (the survey set) or nothing (the default set) is known")
+            if mark == want:
                 records[f"{readme.parent.name}/{m.group(1)}"] = m.group(2)
     return records
 

@@ -38,7 +38,19 @@ def test_the_default_set_is_the_nine_records_and_every_record_has_a_recipe():
     extra = data_records.manifest(extra=True)
     assert len(extra) == 6 and not set(extra) & set(DEFAULT_SET)
     assert all(len(h) == 64 for h in extra.values())
-    assert set(fetch_data.RECIPES) == set(DEFAULT_SET) | set(extra)
+    survey = data_records.manifest(survey=True)
+    assert not set(survey) & (set(DEFAULT_SET) | set(extra))
+    assert set(fetch_data.RECIPES) == set(DEFAULT_SET) | set(extra) | set(survey)
+
+
+def test_the_survey_sets_recipes_name_pinned_sources_with_their_hash():
+    survey = data_records.manifest(survey=True)
+    assert len(survey) == 27 and all(len(h) == 64 for h in survey.values())
+    for name in survey:
+        for source in fetch_data.RECIPES[name].sources:
+            assert len(source.commit) == 40 and len(source.sha256) == 64, name
+            assert source.url().startswith(f"https://raw.githubusercontent.com/{source.repo}/{source.commit}/")
+            assert " " not in source.url(), name
 
 
 def test_the_optional_sets_recipes_name_one_pinned_damper_file_each():
@@ -68,6 +80,9 @@ def test_only_extra_marks_the_optional_set_and_another_mark_is_an_error(tmp_path
                       f"| three.csv | 7 | {'3' * 64} |\n")
     assert data_records.manifest(tmp_path) == {"a/one.csv": "1" * 64}
     assert data_records.manifest(tmp_path, extra=True) == {"a/two.csv": "2" * 64}
+    readme.write_text(f"| five.csv | {'5' * 64} | survey |\n")
+    assert data_records.manifest(tmp_path, survey=True) == {"a/five.csv": "5" * 64}
+    assert data_records.manifest(tmp_path) == {} and data_records.manifest(tmp_path, extra=True) == {}
     readme.write_text(f"| four.csv | {'4' * 64} | optional |\n")
     with pytest.raises(ValueError, match="four.csv.*'optional'"):
         data_records.manifest(tmp_path)
@@ -79,6 +94,9 @@ def test_only_extra_marks_the_optional_set_and_another_mark_is_an_error(tmp_path
     (["--extra"], "both"),
     (["--extra", "--from", "."], "both"),
     (["brfd/KocaeliMCE_36lb.csv"], "named"),
+    (["--survey"], "survey"),
+    (["--survey", "--from", "."], "survey"),
+    (["--survey", "--extra"], "all"),
 ])
 def test_the_default_run_asks_for_the_default_set_only(monkeypatch, tmp_path, args, want):
     asked = {}
@@ -90,9 +108,10 @@ def test_the_default_run_asks_for_the_default_set_only(monkeypatch, tmp_path, ar
     monkeypatch.setattr(fetch_data, "fetch", fake_fetch)
     monkeypatch.chdir(tmp_path)
     assert fetch_data.main([*args, "--to", str(tmp_path / "data")]) == 0
-    extra = data_records.manifest(extra=True)
+    extra, survey = data_records.manifest(extra=True), data_records.manifest(survey=True)
     expected = {"default": DEFAULT_SET, "both": {**DEFAULT_SET, **extra},
-                "named": {"brfd/KocaeliMCE_36lb.csv": extra["brfd/KocaeliMCE_36lb.csv"]}}[want]
+                "named": {"brfd/KocaeliMCE_36lb.csv": extra["brfd/KocaeliMCE_36lb.csv"]},
+                "survey": survey, "all": {**DEFAULT_SET, **extra, **survey}}[want]
     assert asked["records"] == expected
     assert (asked["from_dir"] is None) == ("--from" not in args)
 
@@ -227,3 +246,60 @@ def test_the_mat_reader_finds_plain_compressed_and_narrow_arrays(tmp_path):
                       "a_long_name": [7.0]}
     assert convert_records.convert_emps(str(tmp_path / "d.mat"), str(tmp_path / "e.csv")) == 3
     assert (tmp_path / "e.csv").read_text() == "t,u,y\n0,1,1e-05\n0.001,2,2.5e-05\n0.002,3,-3\n"
+
+
+def mat_struct(name: str, fields: dict[str, bytes]) -> bytes:
+    """A 1-by-1 MAT-file struct whose fields are the given matrix elements (their own names left empty)."""
+    width = 8
+    names = b"".join(f.encode().ljust(width, b"\0") for f in fields)
+    parts = (
+        mat_element(6, struct.pack("<II", 2, 0))
+        + mat_element(5, struct.pack("<ii", 1, 1))
+        + mat_element(1, name.encode())
+        + mat_small(5, struct.pack("<i", width))
+        + mat_element(1, names)
+        + b"".join(fields.values())
+    )
+    return mat_element(14, parts)
+
+
+def mat_matrix(name: str, rows: int, values: list) -> bytes:
+    """A MAT-file real double matrix of `rows` rows, values in column order."""
+    parts = (
+        mat_element(6, struct.pack("<II", 6, 0))
+        + mat_element(5, struct.pack("<ii", rows, len(values) // rows))
+        + mat_element(1, name.encode())
+        + mat_element(9, struct.pack(f"<{len(values)}d", *values))
+    )
+    return mat_element(14, parts)
+
+
+def test_the_mat_reader_finds_struct_fields_and_rows_and_skips_objects(tmp_path):
+    header = b"MATLAB 5.0 MAT-file".ljust(116, b" ") + b"\0" * 8 + struct.pack("<H", 0x0100) + b"IM"
+    # An object (class 17) whose second part is a class name, not dimensions: skipped, as MATLAB's objects are.
+    opaque = mat_element(14, mat_element(6, struct.pack("<II", 17, 0)) + mat_element(1, b"x")
+                         + mat_element(1, b"MCOS") + mat_element(1, b"FileWrapper__"))
+    rec = mat_struct("rec", {"time": mat_matrix("", 1, [0.5, 0.75, 1.0]),
+                             "pos": mat_matrix("", 2, [1.0, 10.0, 2.0, 20.0, 3.0, 30.0])})
+    (tmp_path / "r.mat").write_bytes(header + opaque + rec + mat_matrix("data", 3, [0, 1, 2, 5, 6, 7]))
+    arrays = convert_records.read_mat_arrays(str(tmp_path / "r.mat"))
+    assert set(arrays) == {"rec.time", "rec.pos", "data"}
+    assert arrays["rec.pos"].dims == (2, 3) and arrays["rec.pos"].row(1) == [10.0, 20.0, 30.0]
+    assert arrays["data"].column(1) == [5.0, 6.0, 7.0]
+    assert convert_records.read_mat_vectors(str(tmp_path / "r.mat")) == {"data": [0.0, 1.0, 2.0, 5.0, 6.0, 7.0]}
+    out = tmp_path / "o.csv"
+    assert convert_records.convert_mat(str(tmp_path / "r.mat"), "rec.pos(2,:)", "rec.pos(1,:)", str(out),
+                                       time="rec.time") == 3
+    assert out.read_text() == "t,u,y\n0,10,1\n0.25,20,2\n0.5,30,3\n"
+    convert_records.convert_mat(str(tmp_path / "r.mat"), "data(:,2)", "data(:,1)", str(out), dt=0.1)
+    assert out.read_text() == "t,u,y\n0,5,0\n0.1,6,1\n0.2,7,2\n"
+
+
+def test_a_table_is_read_by_column_name_or_by_index(tmp_path):
+    (tmp_path / "a.csv").write_text('"V1","V2",\n0.5,-1.25,\n 0.000,3,\n')
+    out = tmp_path / "o.csv"
+    assert convert_records.convert_table(str(tmp_path / "a.csv"), "V2", "V1", 9.0, str(out)) == 2
+    assert out.read_text() == "t,u,y\n0,-1.25,0.5\n9,3,0\n"
+    (tmp_path / "b.dat").write_text("   6.4100000e+00\t   4.7660989e+00\t\r\n   3.41e+00\t 4.76e+00\t\r\n")
+    convert_records.convert_table(str(tmp_path / "b.dat"), 0, 1, 1.0, str(out))
+    assert out.read_text() == "t,u,y\n0,6.41,4.7660989\n1,3.41,4.76\n"
