@@ -19,8 +19,7 @@
 //! - **Absent** needs: no gain from the gap, the play not significantly above zero, a model with the gap
 //!   not clearly worse than its zero-gap twin on the held-out part, no friction element (itself a play), a bound (the largest
 //!   play the record does not rule out at 95%, checked on the play's profile) narrower than
-//!   [`MAX_BOUND_SHARE`] of the travel, and at least [`MIN_ABSENT_REVERSALS`] reversals crossing it (or
-//!   [`FEW_REVERSALS`], the bound then read at 99.9%, [`CHI2_999`]).
+//!   [`MAX_BOUND_SHARE`] of the travel, and at least [`MIN_ABSENT_REVERSALS`] reversals crossing it.
 //! - Anything else is **undetermined**, and so is every impossible estimate (a negative gap, a play wider
 //!   than the travel), said as what it is.
 
@@ -88,10 +87,6 @@ pub const HALF_TOLERANCE: f64 = 0.25;
 pub const PROFILE_STEPS: usize = 10;
 /// The 95% point of chi-square with one degree of freedom: the profile's threshold.
 pub const CHI2_95: f64 = 3.84;
-/// The 99.9% point of chi-square with one degree of freedom: the profile's threshold where only
-/// [`FEW_REVERSALS`] to [`MIN_ABSENT_REVERSALS`] reversals cross the 95% bound (the stronger evidence
-/// `present` asks of a few reversals, [`FEW_REVERSALS_Z`] = 3.09 one-sided, asked of `absent` alike).
-pub const CHI2_999: f64 = 10.83;
 /// How the standard errors are computed, as the answer names it.
 pub const SE_METHOD: &str = "Newey-West sandwich of the fit-part simulation errors (Bartlett window out to the \
     residual's first white lag): holds when the residuals are autocorrelated, where the information matrix alone \
@@ -1089,7 +1084,7 @@ impl Context<'_, '_> {
         let (start, inflation) = self.profile_start(reasons)?;
         let best = p.cost(&r.model, Objective::Simulation)?;
         let unit = best / p.n_fit as f64 * inflation;
-        let Some(bound) = self.ruled_out(start, best, unit, CHI2_95) else {
+        let Some(bound) = self.ruled_out(start, best, unit) else {
             reasons
                 .push("no play the record rules out could be found on the play's profile".into());
             return None;
@@ -1099,54 +1094,19 @@ impl Context<'_, '_> {
         reasons.push(format!(
             "the record rules out a play above {} at 95% (profile checked), {}% of the travel {}; {crossing} \
              reversals cross that width (at least {MIN_ABSENT_REVERSALS} and at most {:.0}% of the travel are \
-             needed to say no play, or {FEW_REVERSALS} with the bound read at 99.9%)",
+             needed to say no play)",
             g(bound),
             (100.0 * bound / r.travel).round(),
             g(r.travel),
             100.0 * MAX_BOUND_SHARE
         ));
-        if !narrow || crossing >= MIN_ABSENT_REVERSALS {
-            return (narrow && crossing >= MIN_ABSENT_REVERSALS).then_some(bound);
-        }
-        if crossing < FEW_REVERSALS {
-            return None;
-        }
-        self.strict_bound(bound, best, unit, reasons)
-    }
-
-    /// Where [`FEW_REVERSALS`] to [`MIN_ABSENT_REVERSALS`] reversals cross the 95% bound `from`: the play
-    /// the record rules out at 99.9% ([`CHI2_999`]), said, if it is narrower than [`MAX_BOUND_SHARE`] of the
-    /// travel and [`FEW_REVERSALS`] reversals still cross it.
-    fn strict_bound(
-        &self,
-        from: f64,
-        best: f64,
-        unit: f64,
-        reasons: &mut Vec<String>,
-    ) -> Option<f64> {
-        let r = self.r;
-        let Some(bound) = self.ruled_out(from, best, unit, CHI2_999) else {
-            reasons.push(
-                "no play the record rules out at 99.9% could be found on the play's profile".into(),
-            );
-            return None;
-        };
-        let crossing = crossing_reversals(&r.sim.x[..self.p.n_fit], bound);
-        let usable = bound <= MAX_BOUND_SHARE * r.travel && crossing >= FEW_REVERSALS;
-        reasons.push(format!(
-            "with fewer than {MIN_ABSENT_REVERSALS} reversals across it the bound is read at 99.9%: the record \
-             rules out a play above {} ({}% of the travel), which {crossing} reversals cross (at least \
-             {FEW_REVERSALS} needed)",
-            g(bound),
-            (100.0 * bound / r.travel).round(),
-        ));
-        usable.then_some(bound)
+        (narrow && crossing >= MIN_ABSENT_REVERSALS).then_some(bound)
     }
 
     /// The first play, from `start` up by half at a time ([`PROFILE_STEPS`] at most, and not beyond
     /// [`MAX_BOUND_SHARE`] of the travel once past `start`), whose profile (the final model refitted with its
-    /// play pinned there) costs at least `level` units `unit` more than the fit's `best`.
-    fn ruled_out(&self, start: f64, best: f64, unit: f64, level: f64) -> Option<f64> {
+    /// play pinned there) costs at least [`CHI2_95`] units `unit` more than the fit's `best`.
+    fn ruled_out(&self, start: f64, best: f64, unit: f64) -> Option<f64> {
         let (p, r) = (self.p, self.r);
         let held = |b: f64| {
             let pins = r.model.play_pins(b, p.time_scale);
@@ -1160,7 +1120,7 @@ impl Context<'_, '_> {
             if step > 0 && bound > widest {
                 return None;
             }
-            if held(bound).is_some_and(|c| (c - best) / unit >= level) {
+            if held(bound).is_some_and(|c| (c - best) / unit >= CHI2_95) {
                 return Some(bound);
             }
             bound *= 1.5;
@@ -1436,33 +1396,6 @@ mod tests {
         (open.base.c1, open.base.c2) = (0.25, 0.25);
         let (bound, said, _) = bound_of(&open);
         assert!(bound.is_none(), "{said}");
-    }
-
-    /// A record with few reversals bounds the play at 99.9%: the paper's linear block with no play (noise
-    /// 0.02) driven by a slow sine, its fit part 6 periods (12 reversals): the 95% bound has fewer than 20
-    /// reversals across it, so the bound is read further out, at 99.9%, and holds; with 2 periods (4
-    /// reversals) no bound is given.
-    #[test]
-    fn few_reversals_bound_the_play_at_the_stricter_level() {
-        use crate::diagnose::fit::lm::LmOptions;
-        use crate::diagnose::fit::model::Rest;
-        use crate::diagnose::fit::model::tests::with_noise;
-        let (n, n_fit) = RECORD;
-        let bound_with = |periods: f64| {
-            let w = 2.0 * std::f64::consts::PI * periods / n_fit as f64;
-            let u: Vec<f64> = (0..n).map(|k| (w * k as f64).sin()).collect();
-            let truth = paper_gap_record(0.0, 3, 1.0).2;
-            let sim = truth.simulate(&u, Rest::ZERO, n, 1e6).expect("it runs");
-            let y = with_noise(&sim.y, 0.02, 5);
-            let p = Problem::new(&u, &y, n_fit, LmOptions::default());
-            bound_without_se(&p, &truth)
-        };
-        let (bound, said, travel) = bound_with(6.0);
-        let bound = bound.unwrap_or_else(|| panic!("no bound: {said}"));
-        assert!(said.contains("the bound is read at 99.9%"), "{said}");
-        assert!(bound <= MAX_BOUND_SHARE * travel, "{bound} {said}");
-        let (none, said, _) = bound_with(2.0);
-        assert!(none.is_none(), "{said}");
     }
 
     /// A friction element no held-out error asks for is dropped before the verdict: on a record of the

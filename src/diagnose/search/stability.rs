@@ -73,7 +73,13 @@ fn at_split(p: &Problem, last: &EffectModel, f: f64, depth: Depth) -> SplitVerdi
     (p.progress)(&format!("judging the play again at fit fraction {f:.2}"));
     let q = p.resplit(fit_len(p.u.len(), f));
     let start = last.deterministic();
-    let refit = q.fit(&start, std::slice::from_ref(&start), Objective::Simulation);
+    // On a long record's window (`Problem::verdict_window`) a later split keeps the same fit part, where the
+    // final model is fitted already: only the held-out part moves.
+    let refit = if q.n_fit == p.n_fit {
+        Some((start, f64::NAN))
+    } else {
+        q.fit(&start, std::slice::from_ref(&start), Objective::Simulation)
+    };
     let Some((m, _)) = refit else {
         return SplitVerdict {
             fit_fraction: f,
