@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use super::diagnosis::FIT_FRACTIONS;
 use super::presence::{
-    self, BacklashSupport, Depth, FEW_HELDOUT_REVERSALS, Presence, SplitVerdict,
+    self, BacklashSupport, Depth, FEW_HELDOUT_REVERSALS, FEW_REVERSALS, Presence, SplitVerdict,
 };
 use crate::diagnose::fit::model::{EffectModel, Objective};
 use crate::diagnose::fit::problem::Problem;
@@ -113,15 +113,16 @@ fn agrees(own: Presence, other: &SplitVerdict) -> bool {
 }
 
 /// Whether a split says nothing about play: the final model could not be refitted there (it has no play
-/// there), or fewer than [`FEW_HELDOUT_REVERSALS`] reversals cross the play on its held-out part, so that
-/// no verdict there could be `present` whatever the record holds. Neither is evidence: the fits' strict
-/// simulation refuses, as a start, a model it accepted on the chosen fit part where inverted samples make
-/// a larger share of a shorter one, or where the added samples of a longer one move it against x (8 of the
-/// 108 countable play records of the confusion table found `present` have a neighbour that refused the
-/// final model so, beside one that agrees); and a later split of a slow sine leaves its held-out part one
-/// reversal (the damper's 0.25 Hz test at 0.8).
+/// there), or fewer than [`FEW_HELDOUT_REVERSALS`] reversals cross the play on its held-out part or fewer
+/// than [`FEW_REVERSALS`] on its fit part, so that no verdict there could be `present` whatever the record
+/// holds. None is evidence: the fits' strict simulation refuses, as a start, a model it accepted on the
+/// chosen fit part where inverted samples make a larger share of a shorter one, or where the added samples
+/// of a longer one move it against x (8 of the 108 countable play records of the confusion table found
+/// `present` have a neighbour that refused the final model so, beside one that agrees); a later split of a
+/// slow sine leaves its held-out part one reversal (the damper's 0.25 Hz test at 0.8), an earlier one its
+/// fit part seven (the same test at 0.5).
 fn silent(s: &SplitVerdict) -> bool {
-    !s.play.is_finite() || s.reversals[1] < FEW_HELDOUT_REVERSALS
+    !s.play.is_finite() || s.reversals[1] < FEW_HELDOUT_REVERSALS || s.reversals[0] < FEW_REVERSALS
 }
 
 /// How a split's play reads in the reasons.
@@ -130,8 +131,9 @@ fn said_play(s: &SplitVerdict) -> String {
         "not refitted".into()
     } else if silent(s) {
         format!(
-            "{}, {} reversal(s) cross it held out: too few to judge",
+            "{}, {} reversal(s) cross it on the fit part and {} held out: too few to judge",
             g(s.play),
+            s.reversals[0],
             s.reversals[1]
         )
     } else if s.presence == Presence::Undetermined && !s.undecided_by.is_empty() {
@@ -428,13 +430,36 @@ mod tests {
         let s = short(1);
         assert_eq!(s.presence, Presence::Present);
         assert!(
-            s.reasons
-                .last()
-                .unwrap()
-                .contains("1 reversal(s) cross it held out: too few to judge"),
+            s.reasons.last().unwrap().contains(
+                "30 reversal(s) cross it on the fit part and 1 held out: too few to judge"
+            ),
             "{:?}",
             s.reasons
         );
         assert_eq!(short(2).presence, Presence::Undetermined);
+    }
+
+    /// A split whose fit part fewer than 8 reversals cross cannot find play either (a slow sine's earlier
+    /// split): silent; 8 can judge.
+    #[test]
+    fn a_split_with_too_short_a_fit_part_says_nothing() {
+        let early = |fit: usize| {
+            let mut s = at(0.6, Presence::Undetermined);
+            s.reversals = [fit, 12];
+            judged(
+                claim(Presence::Present),
+                vec![s, at(0.7, Presence::Present), at(0.8, Presence::Present)],
+            )
+        };
+        let s = early(7);
+        assert_eq!(s.presence, Presence::Present, "{:?}", s.reasons);
+        assert!(
+            s.reasons.last().unwrap().contains(
+                "7 reversal(s) cross it on the fit part and 12 held out: too few to judge"
+            ),
+            "{:?}",
+            s.reasons
+        );
+        assert_eq!(early(8).presence, Presence::Undetermined);
     }
 }
