@@ -121,11 +121,7 @@ def convert_brfd(source: str, out: str) -> int:
     first three columns as t,u,y with 10 significant digits."""
     with open(source) as f:
         rows = json.load(f)["data"]
-    with open(out, "w", newline="") as f:
-        f.write("t,u,y\n")
-        for r in rows:
-            f.write(f"{r[0]:.10g},{r[1]:.10g},{r[2]:.10g}\n")
-    return len(rows)
+    return write_tuy(out, [r[0] for r in rows], [r[1] for r in rows], [r[2] for r in rows])
 
 
 # MATLAB level-5 MAT-file element types (the MAT-File Format document): numeric types by code, with the
@@ -228,15 +224,11 @@ def convert_emps(source: str, out: str) -> int:
     t, u, y = arrays["t"], arrays["vir"], arrays["qm"]
     if not len(t) == len(u) == len(y):
         raise SystemExit(f"{source}: t, vir and qm have {len(t)}, {len(u)} and {len(y)} values")
-    with open(out, "w", newline="") as f:
-        f.write("t,u,y\n")
-        for row in zip(t, u, y):
-            f.write("{:.10g},{:.10g},{:.10g}\n".format(*row))
-    return len(t)
+    return write_tuy(out, t, u, y)
 
 
 def write_tuy(out: str, t: list[float], u: list[float], y: list[float]) -> int:
-    """`t,u,y` with a header line, every number with 10 significant digits (the survey set's form)."""
+    """`t,u,y` with a header line, every number with 10 significant digits (the damper's, EMPS's and the survey set's form)."""
     if not len(t) == len(u) == len(y):
         raise SystemExit(f"{out}: t, u and y have {len(t)}, {len(u)} and {len(y)} values")
     with open(out, "w", newline="") as f:
