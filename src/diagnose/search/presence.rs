@@ -11,7 +11,7 @@
 //!   zero-gap model with each play-free effect of the catalogue that imitates play added (a curve, friction,
 //!   direction-dependent dynamics, a dead zone, clipping), each by at least [`MIN_GAIN`] and significantly;
 //!   the play is above zero by [`residual::Z95`] standard errors that hold with coloured residuals (a
-//!   Newey-West sandwich); it is narrower than [`MAX_PLAY_SHARE`] of the travel of the linear block's
+//!   sandwich with an autoregressive long-run variance); it is narrower than [`MAX_PLAY_SHARE`] of the travel of the linear block's
 //!   output; at least [`MIN_REVERSALS`] reversals of that output cross it on the fit part and
 //!   [`MIN_HELDOUT_REVERSALS`] on the held-out part (or [`FEW_REVERSALS`] and [`FEW_HELDOUT_REVERSALS`], a
 //!   periodic test of a few periods, with every gain at [`FEW_REVERSALS_Z`]); with a friction element, the
@@ -88,9 +88,9 @@ pub const PROFILE_STEPS: usize = 10;
 /// The 95% point of chi-square with one degree of freedom: the profile's threshold.
 pub const CHI2_95: f64 = 3.84;
 /// How the standard errors are computed, as the answer names it.
-pub const SE_METHOD: &str = "Newey-West sandwich of the fit-part simulation errors (Bartlett window out to the \
-    residual's first white lag): holds when the residuals are autocorrelated, where the information matrix alone \
-    claims too much; plus the noise of the level the play is measured at (the record's first output sample), \
+pub const SE_METHOD: &str = "sandwich of the fit-part simulation errors (the scores' long-run variance read from \
+    an autoregression of order 0 to 12 chosen by BIC, den Haan and Levin's estimate): holds when the residuals are \
+    autocorrelated, where the information matrix alone claims too much; plus the noise of the level the play is measured at (the record's first output sample), \
     which moves the play by 1/m1 - 1/m2 per unit where the borders' slopes differ";
 
 /// The three answers.
