@@ -84,6 +84,7 @@ use crate::diagnose::fit::problem::{Problem, fit_linear, fit_plain};
 use crate::diagnose::fit::structure::{
     self, InitialState, Structure, StructureChoice, min_samples,
 };
+use crate::diagnose::record::{POOR_EXCITATION, excitation_of};
 use crate::diagnose::search::decision;
 pub use crate::diagnose::search::diagnosis::*;
 pub use crate::diagnose::search::round::usable_lags;
@@ -138,8 +139,57 @@ pub fn diagnose_with_progress(
 /// the neighbouring splits. On a long record (fits explored on a window of the fit part) every model the
 /// verdict compares is fitted on that window and scored on the whole held-out part ([`Problem::verdict_window`]),
 /// `last` refitted there first from where it ended: the verdict's fits then cost a window's, not the whole fit
-/// part's. Where that refit fails the verdict is judged on the whole fit part.
+/// part's. Where that refit fails the verdict is judged on the whole fit part. Where the split's held-out
+/// part is poorly excited, the verdict is judged at the split that excites both parts ([`excited_split`]).
 fn judge_play(p: &Problem, last: &EffectModel, fraction: f64) -> presence::BacklashSupport {
+    let Some((q, m, f, why)) = excited_split(p, last) else {
+        return judge_on(p, last, fraction);
+    };
+    let mut s = judge_on(&q, &m, f);
+    s.reasons.insert(0, why);
+    s
+}
+
+/// Where the held-out part of `p`'s split is poorly excited (the input's standard deviation or range there
+/// below [`POOR_EXCITATION`] of the fit part's: a quiet tail, on which every model predicts alike and no
+/// claim is tested) and another split excites each part at least that much of the other ([`best_split`]):
+/// the record split there, the final model `last` refitted on its fit part from where it ended (its
+/// parameters keep their meaning, as at the neighbouring splits), that split's fit fraction and the
+/// sentence that says so. `None` where the split is fair, where no split is, or where the refit fails (the
+/// verdict then says that the held-out part tests nothing).
+fn excited_split<'a>(
+    p: &Problem<'a>,
+    last: &EffectModel,
+) -> Option<(Problem<'a>, EffectModel, f64, String)> {
+    let (s, r) = excitation_of(&p.u[..p.n_fit], &p.u[p.held_from..]);
+    let (best, alike) = best_split(p.u);
+    let n_fit = structure::fit_len(p.u.len(), best);
+    if (s >= POOR_EXCITATION && r >= POOR_EXCITATION) || alike < POOR_EXCITATION || n_fit == p.n_fit
+    {
+        return None;
+    }
+    (p.progress)(&format!(
+        "judging the play at fit fraction {best:.2}, where both parts are excited"
+    ));
+    let q = p.resplit(n_fit);
+    let start = last.deterministic();
+    let (m, _) = q.fit(&start, std::slice::from_ref(&start), Objective::Simulation)?;
+    let why = format!(
+        "the held-out part of the split asked for is poorly excited (its input's standard deviation is {:.0}% \
+         and its range {:.0}% of the fit part's), so it tests no claim: the play is judged at the fit fraction \
+         {best:.2}, which excites the two parts most alike (each part's input has at least {:.0}% of the \
+         other's standard deviation and range), with the final model refitted on that fit part; the held-out \
+         errors of the effects stay those of the split asked for",
+        100.0 * s,
+        100.0 * r,
+        100.0 * alike
+    );
+    Some((q, m, best, why))
+}
+
+/// The verdict on play for the final model `last` of `p` (split at the fit fraction `fraction`), on the
+/// long record's window where there is one (see [`judge_play`]), checked at the neighbouring splits.
+fn judge_on(p: &Problem, last: &EffectModel, fraction: f64) -> presence::BacklashSupport {
     let v = p.verdict_window();
     let start = last.deterministic();
     let refit = (v.n_fit < p.n_fit)

@@ -317,3 +317,42 @@ fn usable_lags_by_hand() {
     assert_eq!(usable_lags(20, 53), 10);
     assert_eq!(usable_lags(20, 4), 1);
 }
+
+/// A quiet tail: the paper's linear block with a play of 0.6 (noise 0.02), its input scaled by 0.05 on the
+/// last 35% of the record. At the split 0.7 the held-out part tests no claim; the play is judged at the
+/// split that excites both parts, which finds it and says where it was judged. The same record without
+/// the quiet tail is judged at its own split.
+#[test]
+fn a_quiet_held_out_part_moves_the_verdict_to_an_excited_split() {
+    use crate::diagnose::fit::model::tests::with_noise;
+    use crate::diagnose::search::presence::Presence;
+    let n = 2000;
+    let truth = EffectModel::plain(BaseModel {
+        c1: 0.3,
+        c2: 0.3,
+        m2: 1.0,
+        ..paper_base()
+    });
+    let judged = |quiet: bool| {
+        let mut u = input(n);
+        if quiet {
+            u[1300..].iter_mut().for_each(|v| *v *= 0.05);
+        }
+        let sim = truth.simulate(&u, Rest::ZERO, n, 1e6).expect("it runs");
+        let y = with_noise(&sim.y, 0.02, 5);
+        let p = Problem::new(&u, &y, 1400, LmOptions::default());
+        judge_play(&p, &truth, 0.7)
+    };
+    let moved = judged(true);
+    let said = moved.reasons.join(" | ");
+    assert!(
+        said.starts_with("the held-out part of the split asked for is poorly excited"),
+        "{said}"
+    );
+    assert!(said.contains("judged at the fit fraction 0.3"), "{said}");
+    assert_eq!(moved.presence, Presence::Present, "{said}");
+    let fair = judged(false);
+    let said = fair.reasons.join(" | ");
+    assert!(!said.contains("poorly excited"), "{said}");
+    assert_eq!(fair.presence, Presence::Present, "{said}");
+}
