@@ -601,6 +601,23 @@ pub fn reversal_turns(x: &[f64], h: f64) -> Vec<usize> {
     turns
 }
 
+/// The bisections that narrow a bound between the last play the profile allows and the first it rules out.
+pub const PROFILE_HALVINGS: usize = 3;
+
+/// The play between `allowed` (not ruled out) and `ruled_out` (ruled out) where `ruled` turns, to within
+/// `(ruled_out - allowed) / 2^PROFILE_HALVINGS`: the narrowest play found ruled out.
+fn narrowed(mut allowed: f64, mut ruled_out: f64, ruled: impl Fn(f64) -> bool) -> f64 {
+    for _ in 0..PROFILE_HALVINGS {
+        let mid = 0.5 * (allowed + ruled_out);
+        if ruled(mid) {
+            ruled_out = mid;
+        } else {
+            allowed = mid;
+        }
+    }
+    ruled_out
+}
+
 /// The conditions [`Context::decide`] checked, each true where it holds.
 struct Conditions {
     /// The held-out part is excited like the fit part.
@@ -1105,14 +1122,18 @@ impl Context<'_, '_> {
 
     /// The first play, from `start` up by half at a time ([`PROFILE_STEPS`] at most, and not beyond
     /// [`MAX_BOUND_SHARE`] of the travel once past `start`), whose profile (the final model refitted with its
-    /// play pinned there) costs at least [`CHI2_95`] units `unit` more than the fit's `best`.
+    /// play pinned there) costs at least [`CHI2_95`] units `unit` more than the fit's `best`; past `start`,
+    /// narrowed between it and the last play that costs less by [`PROFILE_HALVINGS`] bisections (the bound is
+    /// where the profile crosses the threshold, not the step of the search that passed it: up to a third
+    /// narrower).
     fn ruled_out(&self, start: f64, best: f64, unit: f64) -> Option<f64> {
         let (p, r) = (self.p, self.r);
-        let held = |b: f64| {
+        let ruled = |b: f64| {
             let pins = r.model.play_pins(b, p.time_scale);
             let mut s = r.model.clone();
             s.base.c2 = b - s.base.c1;
-            p.fit_pinned(&r.model, &pins, &[s]).map(|(_, c)| c)
+            p.fit_pinned(&r.model, &pins, &[s])
+                .is_some_and(|(_, c)| (c - best) / unit >= CHI2_95)
         };
         let widest = MAX_BOUND_SHARE * r.travel;
         let mut bound = start;
@@ -1120,8 +1141,9 @@ impl Context<'_, '_> {
             if step > 0 && bound > widest {
                 return None;
             }
-            if held(bound).is_some_and(|c| (c - best) / unit >= CHI2_95) {
-                return Some(bound);
+            if ruled(bound) {
+                let allowed = (step > 0).then_some(bound / 1.5);
+                return Some(allowed.map_or(bound, |a| narrowed(a, bound, ruled)));
             }
             bound *= 1.5;
         }
@@ -1373,6 +1395,16 @@ mod tests {
         };
         let mut reasons = Vec::new();
         (cx.bound(&mut reasons), reasons.join(" | "), r.travel)
+    }
+
+    /// The bisection keeps the narrowest play found ruled out: where the profile turns at 1.3 between 1 and
+    /// 1.5, within 0.5 / 8 above it; a profile that rules out everything tried keeps the lower end's half step.
+    #[test]
+    fn a_bound_is_narrowed_to_where_the_profile_turns() {
+        let b = narrowed(1.0, 1.5, |p| p >= 1.3);
+        assert!((1.3..=1.3 + 0.5 / 8.0).contains(&b), "{b}");
+        assert_eq!(narrowed(1.0, 1.5, |_| true), 1.0 + 0.5 / 8.0);
+        assert_eq!(narrowed(1.0, 1.5, |_| false), 1.5);
     }
 
     /// A gap that sits at zero, the lower bound of its fit, has no standard error, and the record still
