@@ -34,6 +34,42 @@ pub fn rms_diff(a: &[f64], b: &[f64]) -> f64 {
     rms(a.iter().zip(b).map(|(x, y)| x - y))
 }
 
+/// Lags [`lagged_sums`] sums side by side.
+const LAG_LANES: usize = 4;
+
+/// `sum_{k=l}^{n-1} a(k) b(k - l)` for each lag l of `lags` (n the length of `a`; `b` at least as long),
+/// each summed in order of k from -0.0 as `Iterator::sum` adds, so bit for bit the sums taken one lag after
+/// another; a lag of n or more sums nothing. A few lags (four) advance together in one pass over the series:
+/// on a long record (correlations over tens of lags, the Diebold-Mariano variance over n^(1/3) lags) the
+/// series are read once per group of lags, not once per lag, and the lags' additions are independent chains
+/// side by side, not one chain each waiting on its last addition.
+pub fn lagged_sums(a: &[f64], b: &[f64], lags: std::ops::Range<usize>) -> Vec<f64> {
+    let n = a.len();
+    let mut out = vec![-0.0; lags.len()];
+    for (g, sums) in out.chunks_mut(LAG_LANES).enumerate() {
+        let first = lags.start + g * LAG_LANES;
+        // Past the group's last lag a lane repeats it and is dropped.
+        let lag: [usize; LAG_LANES] = std::array::from_fn(|j| first + j.min(sums.len() - 1));
+        let mut acc = [-0.0f64; LAG_LANES];
+        // Until the group's longest lag every lane adds only from its own lag on; then all of them.
+        let full = lag[LAG_LANES - 1].min(n);
+        for k in first.min(n)..full {
+            for j in 0..LAG_LANES {
+                if k >= lag[j] {
+                    acc[j] += a[k] * b[k - lag[j]];
+                }
+            }
+        }
+        for k in full..n {
+            for j in 0..LAG_LANES {
+                acc[j] += a[k] * b[k - lag[j]];
+            }
+        }
+        sums.copy_from_slice(&acc[..sums.len()]);
+    }
+    out
+}
+
 /// Whether `value` is below `reference` by more than the fraction `fraction` of it (never for a NaN or an
 /// infinite `value`).
 pub fn below_by(value: f64, reference: f64, fraction: f64) -> bool {
@@ -133,6 +169,28 @@ pub fn block_means(columns: &[&[f64]], factor: usize) -> Vec<Vec<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The lagged sums taken side by side are bit for bit each lag's sum taken alone (`Iterator::sum`):
+    /// groups of lags that do not fill the lanes, a first lag that is not 0, lags beyond the series (empty
+    /// sums), entries of every sign and magnitude.
+    #[test]
+    fn lagged_sums_equal_each_lag_summed_alone_bit_for_bit() {
+        let n = 1001;
+        let a: Vec<f64> = (0..n)
+            .map(|k| ((k * 7919) % 613) as f64 * 1e-3 - 0.3)
+            .collect();
+        let b: Vec<f64> = (0..n)
+            .map(|k| (k as f64 * 0.37).sin() * 10f64.powi((k % 9) as i32 - 4))
+            .collect();
+        for lags in [0..7, 3..4, 2..13, 995..1004, 0..0] {
+            let got = lagged_sums(&a, &b, lags.clone());
+            assert_eq!(got.len(), lags.len());
+            for (l, g) in lags.zip(&got) {
+                let want: f64 = (l..n).map(|k| a[k] * b[k - l]).sum();
+                assert_eq!(g.to_bits(), want.to_bits(), "lag {l}");
+            }
+        }
+    }
 
     #[test]
     fn values_and_empty_inputs() {

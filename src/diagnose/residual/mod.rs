@@ -41,7 +41,7 @@ use crate::plant::Mode;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use crate::stats::mean;
+use crate::stats::{lagged_sums, mean};
 
 /// z for a two-sided 95% band.
 pub const Z95: f64 = 1.959_963_984_540_054;
@@ -63,18 +63,26 @@ fn norm(x: &[f64]) -> f64 {
 
 /// Normalised correlation sum_k a(k) b(k - lag) / (|a| |b|) of centred series, lag >= 0.
 fn corr_at(a: &[f64], b: &[f64], lag: usize) -> f64 {
+    corrs(a, b, lag..lag + 1)[0]
+}
+
+/// [`corr_at`] at each lag of `lags`: the norms once, the lags' sums side by side ([`lagged_sums`]).
+fn corrs(a: &[f64], b: &[f64], lags: std::ops::Range<usize>) -> Vec<f64> {
     let (na, nb) = (norm(a), norm(b));
-    if na == 0.0 || nb == 0.0 || lag >= a.len() {
-        return 0.0;
+    if na == 0.0 || nb == 0.0 {
+        return vec![0.0; lags.len()];
     }
-    let s: f64 = (lag..a.len()).map(|k| a[k] * b[k - lag]).sum();
-    s / (na * nb)
+    let n = a.len();
+    lags.clone()
+        .zip(lagged_sums(a, b, lags))
+        .map(|(l, s)| if l >= n { 0.0 } else { s / (na * nb) })
+        .collect()
 }
 
 /// Autocorrelation r(1..=lags) of the centred series.
 pub fn autocorrelation(x: &[f64], lags: usize) -> Vec<f64> {
     let c = centred(x);
-    (1..=lags).map(|l| corr_at(&c, &c, l)).collect()
+    corrs(&c, &c, 1..lags + 1)
 }
 
 /// A test statistic against its threshold.
@@ -167,7 +175,7 @@ fn outside_band(r: &[f64], band: f64) -> (Vec<usize>, f64, bool) {
 
 pub fn cross_correlation(e: &[f64], u: &[f64], lags: usize) -> CrossCorrelation {
     let (ec, uc) = (centred(e), centred(u));
-    let r: Vec<f64> = (0..=lags).map(|l| corr_at(&ec, &uc, l)).collect();
+    let r = corrs(&ec, &uc, 0..lags + 1);
     let band = white_band(e.len());
     let (outside, peak, rejects) = outside_band(&r, band);
     let statistic = peak / band;
@@ -211,9 +219,7 @@ pub fn billings(e: &[f64], u: &[f64], lags: usize) -> Billings {
     // e(k+1) u(k+1) shifted: phi_{e(eu)}(l) = corr(e(k), e(k-1-l) u(k-1-l)).
     let eu: Vec<f64> = centred(&e.iter().zip(u).map(|(a, b)| a * b).collect::<Vec<_>>());
     let band = white_band(n);
-    let f = |a: &[f64], b: &[f64], shift: usize| -> Vec<f64> {
-        (0..=lags).map(|l| corr_at(a, b, l + shift)).collect()
-    };
+    let f = |a: &[f64], b: &[f64], shift: usize| corrs(a, b, shift..lags + 1 + shift);
     let functions = vec![
         ("phi_ee", f(&ec, &ec, 1)),
         ("phi_ue", f(&ec, &uc, 0)),

@@ -18,10 +18,14 @@ pub fn diebold_mariano(e0: &[f64], e1: &[f64]) -> f64 {
     let mean = d.iter().sum::<f64>() / nf;
     let c: Vec<f64> = d.iter().map(|v| v - mean).collect();
     let lags = (nf.cbrt().floor() as usize).min(n - 1);
-    let gamma = |l: usize| (l..n).map(|k| c[k] * c[k - l]).sum::<f64>() / nf;
-    let mut v = gamma(0);
-    for l in 1..=lags {
-        v += 2.0 * (1.0 - l as f64 / (lags + 1) as f64) * gamma(l);
+    // The autocovariances at lags 0..=lags, their sums side by side in one pass per group of lags.
+    let gamma: Vec<f64> = crate::stats::lagged_sums(&c, &c, 0..lags + 1)
+        .into_iter()
+        .map(|s| s / nf)
+        .collect();
+    let mut v = gamma[0];
+    for (l, g) in gamma.iter().enumerate().skip(1) {
+        v += 2.0 * (1.0 - l as f64 / (lags + 1) as f64) * g;
     }
     if v <= 0.0 {
         return if mean > 0.0 { f64::INFINITY } else { 0.0 };
