@@ -581,10 +581,10 @@ pub fn long_run_inflation(r: &[f64]) -> f64 {
 }
 
 /// The highest order [`autoregressive_sum`] tries (and at most the cube root of the series' length).
-const MAX_AR_ORDER: usize = 12;
+pub const MAX_AR_ORDER: usize = 12;
 /// The largest sum of autoregressive coefficients [`autoregressive_sum`] credits: nearer a unit root the
 /// long-run variance would be unbounded (at most `1 / (1 - 0.97)^2`, about 1,100 times the innovations').
-const MAX_AR_SUM: f64 = 0.97;
+pub const MAX_AR_SUM: f64 = 0.97;
 
 /// The long-run sum of the series `s` (`n` times its spectral density at frequency zero: `sum s_t^2` for a
 /// white series) read from an autoregression, den Haan and Levin's (1997) estimate: AR(k) by least squares,
