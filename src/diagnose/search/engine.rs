@@ -164,8 +164,8 @@ fn excited_split<'a>(
     let (s, r) = excitation_of(&p.u[..p.n_fit], &p.u[p.held_from..]);
     let (best, alike) = best_split(p.u);
     let n_fit = structure::fit_len(p.u.len(), best);
-    if (s >= POOR_EXCITATION && r >= POOR_EXCITATION) || alike < POOR_EXCITATION || n_fit == p.n_fit
-    {
+    // The best split of an unfair one is another: where it is the same, both its ratios reach the rule.
+    if (s >= POOR_EXCITATION && r >= POOR_EXCITATION) || alike < POOR_EXCITATION {
         return None;
     }
     (p.progress)(&format!(
