@@ -1344,6 +1344,8 @@ mod tests {
         );
         assert_eq!(r.name, REFITTED);
         assert!(rms(r.heldout.iter().copied()) < 0.9 * before);
+        // The twin is judged against the model the verdict stands on, not the one it replaced.
+        assert_eq!(twin.z, diebold_mariano(&twin.errors, &r.heldout));
         let cost = |m: &EffectModel| p.cost(m, Objective::Simulation).expect("it runs");
         assert!(cost(&r.model) < cost(&stuck));
         assert!(why.is_some_and(|w| w.contains("refitted from the twin's fit")));
