@@ -31,6 +31,13 @@ pub fn excitation(u: &[f64], n_fit: usize) -> (f64, f64) {
     excitation_of(fit, held)
 }
 
+/// Whether a held-out part whose input's ratios to the fit part's are `(std, range)` ([`excitation_of`])
+/// tests a claim about play: both at least [`POOR_EXCITATION`]; not where the fit part's input is constant
+/// (the ratios are `NaN`).
+pub fn fairly_excited((std, range): (f64, f64)) -> bool {
+    std >= POOR_EXCITATION && range >= POOR_EXCITATION
+}
+
 /// [`excitation`] of the input's held-out samples `held` over its fit samples `fit`.
 pub fn excitation_of(fit: &[f64], held: &[f64]) -> (f64, f64) {
     let range = |v: &[f64]| {

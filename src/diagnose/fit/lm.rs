@@ -459,7 +459,7 @@ impl CombinationVariance {
     }
 }
 
-/// The longest Bartlett window of [`combination_variance`] (lags), and its share of the record at most.
+/// The longest Bartlett window of [`long_run_inflation`] (lags), and its share of the record at most.
 const MAX_HAC_LAGS: usize = 2000;
 const MAX_HAC_SHARE: f64 = 0.1;
 
@@ -569,7 +569,7 @@ fn solve_determined(
 }
 
 /// How much the residuals' autocorrelation inflates a variance read from them as if white: their Bartlett
-/// long-run variance over the sandwich's window (`hac_lags`) against their variance (the record's samples over the effective
+/// long-run variance over the window `hac_lags` chooses against their variance (the record's samples over the effective
 /// ones, `1 + 2 sum of weighted autocorrelations`), at least 1 (negative correlation is not credited). 1 for
 /// residuals that are all zero.
 pub fn long_run_inflation(r: &[f64]) -> f64 {

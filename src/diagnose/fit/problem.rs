@@ -20,6 +20,7 @@ use crate::diagnose::fit::model::{
     BaseModel, EffectModel, Objective, Rest, Scales, Simulation, coefficient_scales, is_stable,
 };
 use crate::diagnose::fit::orders::Structure;
+use crate::diagnose::record::excitation_of;
 use crate::identify::mrgia::{Mrgia, MrgiaConfig};
 use crate::identify::oe::{self, OeConfig};
 use crate::stats::std_dev;
@@ -118,6 +119,12 @@ impl<'a> Problem<'a> {
             n_explore: n_fit.min(EXPLORE_SAMPLES),
             ..self.clone()
         }
+    }
+
+    /// The input's excitation on the held-out part over the fit part's ([`excitation_of`]: the ratios of
+    /// standard deviation and of range).
+    pub fn held_out_excitation(&self) -> (f64, f64) {
+        excitation_of(&self.u[..self.n_fit], &self.u[self.held_from..])
     }
 
     /// The record as the verdict on play judges it: on a long record (exploration on a window of the fit

@@ -84,7 +84,7 @@ use crate::diagnose::fit::problem::{Problem, fit_linear, fit_plain};
 use crate::diagnose::fit::structure::{
     self, InitialState, Structure, StructureChoice, min_samples,
 };
-use crate::diagnose::record::{POOR_EXCITATION, excitation_of};
+use crate::diagnose::record::{POOR_EXCITATION, fairly_excited};
 use crate::diagnose::search::decision;
 pub use crate::diagnose::search::diagnosis::*;
 pub use crate::diagnose::search::round::usable_lags;
@@ -161,13 +161,17 @@ fn excited_split<'a>(
     p: &Problem<'a>,
     last: &EffectModel,
 ) -> Option<(Problem<'a>, EffectModel, f64, String)> {
-    let (s, r) = excitation_of(&p.u[..p.n_fit], &p.u[p.held_from..]);
-    let (best, alike) = best_split(p.u);
-    let n_fit = structure::fit_len(p.u.len(), best);
-    // The best split of an unfair one is another: where it is the same, both its ratios reach the rule.
-    if (s >= POOR_EXCITATION && r >= POOR_EXCITATION) || alike < POOR_EXCITATION {
+    let (s, r) = p.held_out_excitation();
+    if fairly_excited((s, r)) {
         return None;
     }
+    // The best split of an unfair one is another: where it is the same, both its ratios reach the rule.
+    // Where no split reaches it (`NaN` for an input that never moves), none is tried.
+    let (best, alike) = best_split(p.u);
+    if alike.is_nan() || alike < POOR_EXCITATION {
+        return None;
+    }
+    let n_fit = structure::fit_len(p.u.len(), best);
     (p.progress)(&format!(
         "judging the play at fit fraction {best:.2}, where both parts are excited"
     ));

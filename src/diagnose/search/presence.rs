@@ -34,7 +34,7 @@ use crate::diagnose::effects::friction;
 use crate::diagnose::fit::lm::long_run_inflation;
 use crate::diagnose::fit::model::{EffectModel, Objective, Simulation};
 use crate::diagnose::fit::problem::Problem;
-use crate::diagnose::record::{POOR_EXCITATION, excitation_of};
+use crate::diagnose::record::{POOR_EXCITATION, fairly_excited};
 use crate::diagnose::residual::{self, statistics::diebold_mariano};
 // A number in a sentence: the rule of the text output and the report, so that the three print it alike.
 use crate::report::number as g;
@@ -782,9 +782,8 @@ impl Context<'_, '_> {
     /// and range at least [`POOR_EXCITATION`] of the fit part's (the rule of the diagnosis's warning); in
     /// words where they are not, or where the fit part's input is constant (no ratio).
     fn fair_test(&self, reasons: &mut Vec<String>) -> bool {
-        let u = self.p.u;
-        let (s, r) = excitation_of(&u[..self.p.n_fit], &u[self.p.held_from..]);
-        let fair = s >= POOR_EXCITATION && r >= POOR_EXCITATION;
+        let (s, r) = self.p.held_out_excitation();
+        let fair = fairly_excited((s, r));
         if !(s.is_finite() && r.is_finite()) {
             // `excitation`'s NaN: the fit part's input is constant.
             reasons.push(
