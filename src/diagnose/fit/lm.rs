@@ -459,10 +459,6 @@ impl CombinationVariance {
     }
 }
 
-/// The longest Bartlett window of [`long_run_inflation`] (lags), and its share of the record at most.
-const MAX_HAC_LAGS: usize = 2000;
-const MAX_HAC_SHARE: f64 = 0.1;
-
 /// [`CombinationVariance`] of `w . theta` at `theta`; `None` when the data do not determine `w . theta` (see
 /// `solve_determined`) or the point is not valid. Parameters the data do not determine are allowed when the
 /// combination does not involve them (a gap's centre that a following friction element absorbs, with its
@@ -568,16 +564,16 @@ fn solve_determined(
     (null_w.norm() <= NULL_SHARE * w.norm()).then_some((v, undetermined))
 }
 
-/// How much the residuals' autocorrelation inflates a variance read from them as if white: their Bartlett
-/// long-run variance over the window `hac_lags` chooses against their variance (the record's samples over the effective
-/// ones, `1 + 2 sum of weighted autocorrelations`), at least 1 (negative correlation is not credited). 1 for
+/// How much the residuals' autocorrelation inflates a variance read from them as if white: their long-run
+/// sum ([`autoregressive_sum`], the estimate the sandwich's scores use) against their sum of squares (the
+/// record's samples over the effective ones), at least 1 (negative correlation is not credited). 1 for
 /// residuals that are all zero.
 pub fn long_run_inflation(r: &[f64]) -> f64 {
     let c0: f64 = r.iter().map(|v| v * v).sum();
     if c0 <= 0.0 {
         return 1.0;
     }
-    (bartlett_sum(r, hac_lags(r)) / c0).max(1.0)
+    (autoregressive_sum(r).0 / c0).max(1.0)
 }
 
 /// The highest order [`autoregressive_sum`] tries (and at most the cube root of the series' length).
@@ -609,35 +605,6 @@ pub fn autoregressive_sum(s: &[f64]) -> (f64, usize) {
         }
     }
     (best.1, best.2)
-}
-
-/// The Bartlett (Newey-West) long-run sum of the series `s` over `lags` lags: `sum s_t^2` plus twice each
-/// lag's autocovariance sum, weighted `1 - l / (lags + 1)`.
-fn bartlett_sum(s: &[f64], lags: usize) -> f64 {
-    let n = s.len();
-    let gamma = |l: usize| (l..n).map(|t| s[t] * s[t - l]).sum::<f64>();
-    (1..=lags).fold(gamma(0), |sum, l| {
-        sum + 2.0 * (1.0 - l as f64 / (lags + 1) as f64) * gamma(l)
-    })
-}
-
-/// The Bartlett window for residuals `r`: out to the first lag where their autocorrelation falls below
-/// 2/sqrt(n) (the white-noise band), at least Newey and West's 4 (n/100)^(2/9), at most a tenth of the
-/// record and [`MAX_HAC_LAGS`].
-fn hac_lags(r: &[f64]) -> usize {
-    let n = r.len();
-    let nf = n as f64;
-    let floor = (4.0 * (nf / 100.0).powf(2.0 / 9.0)).floor() as usize;
-    let cap = ((MAX_HAC_SHARE * nf) as usize).clamp(1, MAX_HAC_LAGS);
-    let c0: f64 = r.iter().map(|v| v * v).sum();
-    if c0 <= 0.0 {
-        return floor.min(cap);
-    }
-    let band = 2.0 / nf.sqrt();
-    let first_white = (1..=cap)
-        .find(|&l| (l..n).map(|t| r[t] * r[t - l]).sum::<f64>() / c0 < band)
-        .unwrap_or(cap);
-    first_white.max(floor).min(cap)
 }
 
 /// [`levenberg_marquardt`] from each start; the lowest cost wins. Starts whose simulation fails are skipped.
@@ -704,8 +671,8 @@ mod tests {
     }
 
     /// The residuals' inflation: 1 for residuals that alternate in sign (negative correlation is not
-    /// credited) and for zeros; near 1 for a pseudo-random sequence; several times for AR(1) 0.8 residuals
-    /// (the long-run factor (1 + 0.8) / (1 - 0.8) = 9 in the limit, less with a finite window).
+    /// credited) and for zeros; near 1 for a pseudo-random sequence; about 9 for AR(1) 0.8 residuals (the
+    /// long-run factor (1 + 0.8) / (1 - 0.8) = 9: the autoregression carries the whole decay).
     #[test]
     fn long_run_inflation_counts_effective_samples() {
         let alternating: Vec<f64> = (0..500)
@@ -728,7 +695,7 @@ mod tests {
             ar[k] = 0.8 * ar[k - 1] + draw();
         }
         let a = long_run_inflation(&ar);
-        assert!((4.0..10.0).contains(&a), "{a}");
+        assert!((7.0..11.5).contains(&a), "{a}");
     }
 
     /// A straight line y = a + b t fitted by least squares: the classical variance of b is s^2 / sum (t -
