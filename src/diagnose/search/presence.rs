@@ -68,8 +68,6 @@ const REFITTED: &str = "the final model refitted from its zero-gap twin";
 const TWIN: &str = "zero-gap";
 /// Reversals crossing the bound, on the fit part, for `absent`.
 pub const MIN_ABSENT_REVERSALS: usize = 20;
-/// A gap within this share of the travel of zero sits at zero, the lower bound of its fit.
-const AT_ZERO: f64 = 1e-9;
 /// The widest play, as a share of the travel (1st to 99th percentile of the linear block's output on the
 /// fit part), that a record can show: a wider one is not a play.
 pub const MAX_PLAY_SHARE: f64 = 0.5;
@@ -1151,10 +1149,12 @@ impl Context<'_, '_> {
 
     /// Where [`Context::bound`]'s profile starts, and the factor by which the residuals' autocorrelation
     /// inflates its unit: the Wald bound and the sandwich's inflation `(se / se_white)^2` where the play has
-    /// standard errors; where the gap sits at zero, its lower bound, which leaves it none (the fit's
-    /// bound is active: no information is read across it), [`MIN_PLAY_SHARE`] of the travel, the narrowest
-    /// play ever claimed, and the residuals' own inflation ([`long_run_inflation`]), said in words; `None`
-    /// otherwise.
+    /// standard errors; where it has none (the gap sits at zero, the lower bound of its fit, where no
+    /// information is read across the bound, or the record does not determine the gaps) and the gap is
+    /// narrower than [`MIN_PLAY_SHARE`] of the travel, the narrowest play ever claimed, that share (above the
+    /// estimate, so the profile rises from the fit) and the residuals' own inflation
+    /// ([`long_run_inflation`]), said in words; `None` otherwise (a wider gap with no standard error: where
+    /// the profile should start is not known).
     fn profile_start(&self, reasons: &mut Vec<String>) -> Option<(f64, f64)> {
         let r = self.r;
         if let (Some(se), Some(white)) = (r.se, r.se_white.filter(|w| *w > 0.0)) {
@@ -1163,18 +1163,21 @@ impl Context<'_, '_> {
                 (se / white).powi(2).max(1.0),
             ));
         }
-        if r.play.abs() > AT_ZERO * r.travel {
+        let start = MIN_PLAY_SHARE * r.travel;
+        if r.play.abs() >= start {
             return None;
         }
         let inflation = long_run_inflation(&fit_errors(self.p, &r.sim));
         reasons.push(format!(
-            "the gap sits at zero, the lower bound of its fit, where the record gives it no standard error: \
-             the bound is read on the profile alone, from {:.0}% of the travel up, with the residual variance \
-             inflated {:.2} times for the residuals' autocorrelation",
+            "the gap {} is within {:.0}% of the travel of zero, narrower than any play claimed, and the record \
+             gives it no standard error: the bound is read on the profile alone, from {:.0}% of the travel up, \
+             with the residual variance inflated {:.2} times for the residuals' autocorrelation",
+            g(r.play),
+            100.0 * MIN_PLAY_SHARE,
             100.0 * MIN_PLAY_SHARE,
             inflation
         ));
-        Some((MIN_PLAY_SHARE * r.travel, inflation))
+        Some((start, inflation))
     }
 
     /// The answer with its numbers, its sentence and, for `undetermined`, the experiment.
@@ -1410,8 +1413,10 @@ mod tests {
 
     /// A gap that sits at zero, the lower bound of its fit, has no standard error, and the record still
     /// rules out a play: on the paper's linear block with no play (noise 0.02), the bound is read on the
-    /// profile from 2% of the travel up and holds within a quarter of the travel; a gap away from zero with
-    /// no standard error gives no bound.
+    /// profile from 2% of the travel up and holds within a quarter of the travel; so it is for a gap near
+    /// zero but off it (1% of the travel: the record does not determine it, as where a saturation takes
+    /// part of it over), from the same start; a gap of 2% of the travel or wider with no standard error
+    /// gives no bound (where its profile would start is not known).
     #[test]
     fn a_gap_at_zero_is_bounded_on_its_profile_alone() {
         use crate::diagnose::fit::lm::LmOptions;
@@ -1424,11 +1429,22 @@ mod tests {
             bound >= MIN_PLAY_SHARE * travel && bound <= MAX_BOUND_SHARE * travel,
             "{bound} {said}"
         );
-        assert!(said.contains("the gap sits at zero"), "{said}");
-        let mut open = truth.clone();
-        (open.base.c1, open.base.c2) = (0.25, 0.25);
-        let (bound, said, _) = bound_of(&open);
-        assert!(bound.is_none(), "{said}");
+        assert!(said.contains("within 2% of the travel of zero"), "{said}");
+        let gapped = |play: f64| {
+            let mut m = truth.clone();
+            (m.base.c1, m.base.c2) = (play / 2.0, play / 2.0);
+            bound_of(&m)
+        };
+        let (near, said, _) = gapped(0.01 * travel);
+        let near = near.unwrap_or_else(|| panic!("no bound near zero: {said}"));
+        assert!(
+            near >= MIN_PLAY_SHARE * travel && near <= MAX_BOUND_SHARE * travel,
+            "{near} {said}"
+        );
+        for play in [MIN_PLAY_SHARE * travel, 0.5] {
+            let (bound, said, _) = gapped(play);
+            assert!(bound.is_none(), "{play}: {said}");
+        }
     }
 
     /// A friction element no held-out error asks for is dropped before the verdict: on a record of the
