@@ -230,14 +230,22 @@ pub(crate) fn assess(p: &Problem, last: &EffectModel, depth: Depth) -> BacklashS
         depth,
     };
     let mut out = cx.decide(impossible, &mut reasons);
-    if out.presence == Presence::Undetermined && depth == Depth::Full {
+    if out.presence == Presence::Undetermined
+        && depth == Depth::Full
+        && let Some(fold) = Fold::of(&r.sim.x[..p.n_fit], &p.y[..p.n_fit])
+    {
         // What the record looks like instead, where it is a fold (issue 55: an estimate that cannot be is
-        // said as what it is).
-        reasons.extend(Fold::of(&r.sim.x[..p.n_fit], &p.y[..p.n_fit]).map(|f| f.said()));
+        // said as what it is), first among what kept the answer open: no play model fits a fold, whichever
+        // of the verdict's conditions failed on it.
+        reasons.push(fold.said());
+        out.undecided_by.insert(0, FOLD_UNDECIDED.into());
     }
     out.reasons = reasons;
     out
 }
+
+/// What kept the answer open where the record is a fold ([`Fold`]).
+const FOLD_UNDECIDED: &str = "the record looks like a fold, as a sensor that reads |x|: no play model fits it (see the reasons)";
 
 /// The model the verdict stands on, the play-free models it is judged against and, where it is not the
 /// final model `first` (refitted from its zero-gap twin, or a rival), why. The play-free imitators are fitted only where the gap beats its zero-gap twin;
@@ -1383,6 +1391,41 @@ mod tests {
         let said = quiet.reasons.join(" | ");
         assert!(said.contains("range 1.0% of the fit part's"), "{said}");
         assert_eq!(verdict(1.0).presence, Presence::Present);
+    }
+
+    /// A record that is a fold says so first: the paper's linear block read through |x| (noise 0.02),
+    /// judged on the linear model (the gap at zero), is `undetermined` with the fold first among what kept it
+    /// open and described in the reasons; the record with the play and no fold does not mention one.
+    #[test]
+    fn a_fold_is_said_first_among_what_kept_the_answer_open() {
+        use crate::diagnose::fit::lm::LmOptions;
+        use crate::diagnose::fit::model::Rest;
+        let (u, _, truth) = paper_gap_record(0.0, 5, 1.0);
+        let sim = truth
+            .simulate(&u, Rest::ZERO, u.len(), 1e6)
+            .expect("the model runs");
+        let folded: Vec<f64> = sim.x.iter().map(|x| x.abs()).collect();
+        let y = crate::diagnose::fit::model::tests::with_noise(&folded, 0.02, 5);
+        let p = Problem::new(&u, &y, RECORD.1, LmOptions::default());
+        let out = assess(&p, &truth, Depth::Full);
+        assert_eq!(out.presence, Presence::Undetermined);
+        assert_eq!(
+            out.undecided_by[0], FOLD_UNDECIDED,
+            "{:?}",
+            out.undecided_by
+        );
+        assert!(
+            out.reasons
+                .iter()
+                .any(|r| r.contains("looks like a fold instead")),
+            "{:?}",
+            out.reasons
+        );
+        let (u, y, truth) = paper_gap_record(0.5, 5, 1.0);
+        let p = Problem::new(&u, &y, RECORD.1, LmOptions::default());
+        let plain = assess(&p, &truth, Depth::Full);
+        assert!(!plain.undecided_by.iter().any(|w| w.contains("fold")));
+        assert!(!plain.reasons.iter().any(|r| r.contains("fold instead")));
     }
 
     /// The bound of `m` on `p` read on the profile alone (no standard error), its reasons joined, and the
