@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::diagnose::effects::{
-    coloured_noise, curved_borders, direction_dependent, friction, gap_drift, periodic,
+    coloured_noise, curved_borders, dead_zone, direction_dependent, friction, gap_drift, periodic,
     polynomial_feedback, quantization, saturation,
 };
 use crate::diagnose::fit::model::tests::{input, paper_base};
@@ -251,7 +251,15 @@ fn every_element_has_a_magnitude_per_parameter() {
         u: 1.0,
         n_fit: 100,
     };
-    for e in one_of_each() {
+    // The elements the bench does not simulate too: a noise model of order 3 (its magnitudes must follow
+    // the order, not the first order's one), a dead zone, the cubic spring.
+    let mut all = one_of_each();
+    all.extend([
+        coloured_noise::extension(vec![0.5, -0.2, 0.1]),
+        dead_zone::extension(0.1),
+        polynomial_feedback::extension(0.1, 0.01, 0.2),
+    ]);
+    for e in all {
         assert_eq!(
             e.element.typical(&e, &scales).len(),
             e.pack(10.0).len(),
