@@ -184,6 +184,36 @@ mod tests {
     use crate::diagnose::fit::model::Objective;
     use crate::diagnose::fit::starts::tests::{context, paper};
 
+    /// The reported parameters by hand: omega 0.25 rad/sample is a period of 2 pi / 0.25 = 25.13 samples and,
+    /// at 0.01 s a sample, 0.25 / (2 pi 0.01) = 3.979 Hz; amplitude and phase of 0.3 sin + 0.4 cos are 0.5
+    /// and atan2(0.4, 0.3); no frequency without a sample time.
+    #[test]
+    fn parameters_by_hand() {
+        let plain = paper();
+        let m = plain.with(extension(0.25, 0.3, 0.4));
+        let at = |ts| {
+            let p = Periodic.parameters(&Fitted {
+                ts,
+                ..Fitted::on(&m, &plain)
+            });
+            serde_json::to_value(&p).expect("it serialises")
+        };
+        let two_pi = 2.0 * std::f64::consts::PI;
+        let v = at(Some(0.01));
+        let close = |key: &str, want: f64| {
+            let got = v[key].as_f64().expect("a number");
+            assert!(
+                (got - want).abs() < 1e-12 * want.abs(),
+                "{key}: {got} {want}"
+            );
+        };
+        close("period_samples", two_pi / 0.25);
+        close("frequency_hz", 0.25 / (two_pi * 0.01));
+        close("amplitude", 0.5);
+        close("phase", 0.4f64.atan2(0.3));
+        assert!(at(None).get("frequency_hz").is_none());
+    }
+
     /// Cramer's rule on a symmetric 2x2 system, and no solution at or below the singularity bound.
     #[test]
     fn symmetric_2x2_by_hand() {

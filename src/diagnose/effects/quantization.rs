@@ -137,6 +137,59 @@ mod tests {
     use super::*;
     use crate::diagnose::fit::starts::tests::{context, paper};
 
+    /// The evidence draws a stretch of the held-out part to its file and says the lattice's step: on a
+    /// record of the paper's model read through a quantizer of step 0.25, the figure is written (a PNG of
+    /// some size) and the caption names the test and the step; a model without a quantizer gets the
+    /// generic figure, whose caption does not speak of a grid.
+    #[test]
+    fn evidence_draws_the_held_out_stretch_and_names_the_step() {
+        use crate::diagnose::fit::model::tests::input;
+        use crate::diagnose::fit::model::tests::paper_base;
+        use crate::diagnose::fit::model::{EffectModel, Rest};
+        let dir = std::env::temp_dir().join(format!("quant-evidence-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("a temporary folder");
+        let n = 400;
+        let u = input(n);
+        let t: Vec<f64> = (0..n).map(|k| k as f64).collect();
+        let plain = EffectModel::plain(paper_base());
+        let declared = plain.simulate(&u, Rest::ZERO, n, 1e9).expect("it runs");
+        let with = plain.with(extension(0.25, 0.0, 0.0));
+        let y = with.simulate(&u, Rest::ZERO, n, 1e9).expect("it runs").y;
+        let e0: Vec<f64> = y.iter().zip(&declared.y).map(|(a, b)| a - b).collect();
+        let e1 = vec![0.0; n];
+        let caption = |model: &EffectModel, name: &str| {
+            let path = dir.join(name);
+            let fig = Figure {
+                path: &path,
+                test: "lattice",
+                n,
+                n_fit: 280,
+                t: &t,
+                u: &u,
+                y: &y,
+                columns: ["t", "u", "y"],
+                declared: &declared,
+                plain_label: "plain",
+                e0: &e0,
+                e1: &e1,
+                e1_pred: None,
+                after_label: "plain + quantization",
+                model,
+                output: &y,
+                lags: 10,
+            };
+            let said = Quantization.evidence(&fig).expect("it draws");
+            (said, path.metadata().map_or(0, |m| m.len()))
+        };
+        let (said, size) = caption(&with, "quantization.png");
+        assert!(size > 1000, "{size}");
+        assert!(said.contains("Pointing test: lattice"), "{said}");
+        assert!(said.contains("grid of step 0.25"), "{said}");
+        let (generic, _) = caption(&plain, "generic.png");
+        assert!(!generic.contains("grid of step"), "{generic}");
+        std::fs::remove_dir_all(&dir).expect("removed");
+    }
+
     /// The reported offset is where the record's values sit on the lattice, within half a step of 0: the
     /// fitted offset 1.25 plus the output level 0.125 the fit worked about is 1.375, 2.75 steps of 0.5, so
     /// -0.125. The step and the noise level as fitted; a model without a quantizer reports nothing.
