@@ -217,4 +217,19 @@ mod tests {
         let e = l.check_clock(0.1).unwrap_err();
         assert!(e.contains("after its stop_time 10"), "{e}");
     }
+
+    /// A step reaches t_k when it ends within the time tolerance before it, relative to t_k (a float32 clock
+    /// late in a run): the clock such a step leaves passes the check; a clock further before t_k does not.
+    #[test]
+    fn a_clock_just_before_the_instant_it_reached_is_consistent() {
+        let mut l = LayerState::new(1);
+        (l.samples, l.time) = (999, 99.9);
+        let end = 100.0 - 5e-6;
+        assert_eq!(l.instants_reached(0.1, end, end - l.time), 1);
+        (l.samples, l.time) = (1000, end);
+        assert_eq!(l.check_clock(0.1), Ok(()));
+        l.time = 100.0 - 2e-5;
+        let e = l.check_clock(0.1).unwrap_err();
+        assert!(e.contains("not between sample instant 1000"), "{e}");
+    }
 }
