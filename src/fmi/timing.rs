@@ -219,17 +219,25 @@ mod tests {
     }
 
     /// A step reaches t_k when it ends within the time tolerance before it, relative to t_k (a float32 clock
-    /// late in a run): the clock such a step leaves passes the check; a clock further before t_k does not.
+    /// late in a run, or far from time 0): the clock such a step leaves passes the check; a clock further
+    /// before t_k does not. From start time 1000, t_1000 at Ts = 0.1 is 1100 (tolerance 1.1e-4).
     #[test]
     fn a_clock_just_before_the_instant_it_reached_is_consistent() {
-        let mut l = LayerState::new(1);
-        (l.samples, l.time) = (999, 99.9);
-        let end = 100.0 - 5e-6;
-        assert_eq!(l.instants_reached(0.1, end, end - l.time), 1);
-        (l.samples, l.time) = (1000, end);
-        assert_eq!(l.check_clock(0.1), Ok(()));
-        l.time = 100.0 - 2e-5;
-        let e = l.check_clock(0.1).unwrap_err();
-        assert!(e.contains("not between sample instant 1000"), "{e}");
+        for (start, early, too_early) in [(0.0, 5e-6, 2e-5), (1000.0, 1e-4, 1.2e-4)] {
+            let mut l = LayerState::new(1);
+            l.start_time = start;
+            let t_k = start + 100.0;
+            (l.samples, l.time) = (999, start + 99.9);
+            let end = t_k - early;
+            assert_eq!(l.instants_reached(0.1, end, end - l.time), 1, "{start}");
+            (l.samples, l.time) = (1000, end);
+            assert_eq!(l.check_clock(0.1), Ok(()), "{start}");
+            l.time = t_k - too_early;
+            let e = l.check_clock(0.1).unwrap_err();
+            assert!(
+                e.contains("not between sample instant 1000"),
+                "{start}: {e}"
+            );
+        }
     }
 }
