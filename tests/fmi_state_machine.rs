@@ -46,7 +46,7 @@ use crate::common;
 
 use backlash::fmi::instance::Instance;
 use backlash::fmi::state::State;
-use backlash::fmi::vars::{Causality, VarInfo, VarType, Variability};
+use backlash::fmi::vars::{Causality, Value, VarInfo, VarType, Variability};
 use backlash::fmi2::exports::*;
 use backlash::fmi2::ffi::*;
 use backlash::fmi2::state::Call;
@@ -1691,6 +1691,34 @@ fn a_diverged_output_is_never_handed_out() {
         assert!(
             log.iter().any(|e| e.message.contains("'y' is not finite")),
             "{n} references: {log:?}"
+        );
+    }
+}
+
+/// fmi2ExitInitializationMode refuses a sample period that is not positive and finite, however it got into
+/// the model (the setters and a restored state refuse Ts below its minimum, so the model is set here, white
+/// box, as a model's own bug could leave it).
+#[test]
+fn exit_initialization_refuses_a_sample_period_that_is_not_positive() {
+    let kind = Kind::Estimator;
+    let ts = kind
+        .variables()
+        .iter()
+        .position(|v| v.name == "Ts")
+        .unwrap();
+    for bad in [0.0, -1.0, f64::INFINITY, f64::NAN] {
+        let f = drive(kind, Reach::InitializationMode, "ts");
+        unsafe { (*(f.c as *mut Instance)).slave.set(ts, Value::Real(bad)) };
+        assert_eq!(
+            unsafe { fmi2ExitInitializationMode(f.c) },
+            ERROR,
+            "Ts = {bad}"
+        );
+        let last = f.log().last().cloned().unwrap();
+        assert!(
+            last.message
+                .contains(&format!("parameter Ts = {bad} must be positive and finite")),
+            "{last:?}"
         );
     }
 }

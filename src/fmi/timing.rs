@@ -240,4 +240,16 @@ mod tests {
             );
         }
     }
+
+    /// currentCommunicationPoint may differ from the clock by the time tolerance itself (relative to the clock,
+    /// Ts the floor of the scale): a step from there is accepted, one from twice as far is refused.
+    #[test]
+    fn a_step_may_start_the_time_tolerance_off_the_clock() {
+        let l = LayerState::new(1);
+        let tol = time_tolerance(0.0, 1.0);
+        assert_eq!(tol, TIME_TOLERANCE);
+        assert_eq!(l.step_end(1.0, tol, 1.0), Ok(tol + 1.0));
+        let e = l.step_end(1.0, 2.0 * tol, 1.0).unwrap_err();
+        assert!(e.contains("is not the instance's time"), "{e}");
+    }
 }
