@@ -16,13 +16,14 @@
 #                                     `TryFrom<MrgiaState>` selects (about 220 mutants; N = 7 runs about 31),
 #                                     against the library's `mrgia` unit tests (under a second)
 #
-# Tests (the faster subset that covers the boundary, release build, filters `fmi` and `fmus::`): the library's
-# unit tests of the FMI layers (`fmi::`, `fmi2::`, `fmi3::`: the state checks, the state tables) and of the
-# FMUs' models (`fmus::`: the seam, each model's settings and outputs) and the integration tests of
-# the FMI layers (tests/fmi_*.rs, tests/fmi3_exports.rs: forged states, the state machine, timing, threads,
-# the exports) with the two call-sequence fuzzers cut to FMI_FUZZ_CALLS / FMI3_FUZZ_CALLS calls per FMU
-# (default 3000 each, against 120,000 and 20,000 in the full test run). `state` runs only the unit tests
-# (`--lib`, `fmi::`), which test those checks directly. Left out: tests/fmu_import.rs (the packaged .fmu
+# Tests (the faster subset that covers the boundary, release build, filters `fmi`, `fmus::` and
+# `fmu_compensator::`): the library's unit tests of the FMI layers (`fmi::`, `fmi2::`, `fmi3::`: the state
+# checks, the state tables) and of the FMUs' models (`fmus::`: the seam, each model's settings and outputs)
+# and the integration tests of the FMI layers (tests/fmi_*.rs, tests/fmi3_exports.rs: forged states, the state
+# machine, timing, threads, the exports; tests/fmu_compensator.rs: the compensator's warnings and refusals
+# through the FMI 2.0 exports) with the two call-sequence fuzzers cut to FMI_FUZZ_CALLS / FMI3_FUZZ_CALLS
+# calls per FMU (default 3000 each, against 120,000 and 20,000 in the full test run). `state` runs only the
+# unit tests (`--lib`, `fmi::`), which test those checks directly. Left out: tests/fmu_import.rs (the packaged .fmu
 # through another importer: BACKLASH_FMU=never packages nothing; its tests' names contain `fmi`, so `shard`
 # skips `fmu_import::`, else cargo-mutants' baseline test fails in a fresh tree), tests/fmu_memory.rs, the CLI, Python and
 # cross tests.
@@ -59,7 +60,7 @@ state)
 shard)
     [ $# -eq 3 ] || { echo "usage: $0 shard K N" >&2; exit 2; }
     run "${files[@]}" --sharding round-robin --shard "$2/$3" \
-        -C --lib -C --test=integration -- -- fmi fmus:: --skip fmu_import::
+        -C --lib -C --test=integration -- -- fmi fmus:: fmu_compensator:: --skip fmu_import::
     ;;
 effects)
     [ $# -eq 3 ] || { echo "usage: $0 effects K N" >&2; exit 2; }
@@ -73,7 +74,7 @@ mrgia)
         --shard "$2/$3" -C --lib -- mrgia
     ;;
 *)
-    sed -n '2,35p' "$0" >&2
+    sed -n '2,37p' "$0" >&2
     exit 2
     ;;
 esac

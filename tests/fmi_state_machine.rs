@@ -46,7 +46,7 @@ use crate::common;
 
 use backlash::fmi::instance::Instance;
 use backlash::fmi::state::State;
-use backlash::fmi::vars::{Causality, VarInfo, VarType, Variability};
+use backlash::fmi::vars::{Causality, Value, VarInfo, VarType, Variability};
 use backlash::fmi2::exports::*;
 use backlash::fmi2::ffi::*;
 use backlash::fmi2::state::Call;
@@ -1200,7 +1200,7 @@ fn check_batch_with_a_bad_value_applies_nothing(kind: Kind) {
 
 /// fmi2SetupExperiment arguments that are refused: (toleranceDefined, tolerance, startTime,
 /// stopTimeDefined, stopTime, the start of the reason).
-const BAD_SETUPS: [(i32, f64, f64, i32, f64, &str); 5] = [
+const BAD_SETUPS: [(i32, f64, f64, i32, f64, &str); 6] = [
     (
         FMI2_FALSE,
         0.0,
@@ -1224,6 +1224,14 @@ const BAD_SETUPS: [(i32, f64, f64, i32, f64, &str); 5] = [
         FMI2_FALSE,
         0.0,
         "tolerance NaN must be positive and finite",
+    ),
+    (
+        FMI2_TRUE,
+        0.0,
+        0.0,
+        FMI2_FALSE,
+        0.0,
+        "tolerance 0 must be positive and finite",
     ),
     (
         FMI2_FALSE,
@@ -1611,5 +1619,106 @@ fn reset_restores_the_start_values() {
             );
         }
         assert_eq!(used.reals(), fresh.reals(), "{kind:?}");
+    }
+}
+
+/// fmi2SetDebugLogging with logging on and `categories`.
+fn set_debug_logging(f: &Fmu, categories: &[&CStr]) {
+    let cats: Vec<*const c_char> = categories.iter().map(|c| c.as_ptr()).collect();
+    ok(
+        unsafe { fmi2SetDebugLogging(f.c, FMI2_TRUE, cats.len(), cats.as_ptr()) },
+        "fmi2SetDebugLogging",
+    );
+}
+
+/// Calls are logged under logCalls only when the importer asked for that category: with logging on and the
+/// categories logStatusError and logStatusWarning a step logs no call; with logCalls it logs its arguments.
+#[test]
+fn calls_are_logged_only_when_log_calls_is_asked_for() {
+    for kind in Kind::ALL {
+        let f = drive(kind, Reach::StepComplete, "calls");
+        let calls = |f: &Fmu| -> Vec<String> {
+            f.log()
+                .into_iter()
+                .filter(|e| e.category == "logCalls")
+                .map(|e| e.message)
+                .collect()
+        };
+        set_debug_logging(&f, &[c"logStatusError", c"logStatusWarning"]);
+        ok(
+            unsafe { fmi2DoStep(f.c, 0.0, 1.0, FMI2_TRUE) },
+            "fmi2DoStep",
+        );
+        assert_eq!(calls(&f), Vec::<String>::new(), "{kind:?}");
+        set_debug_logging(&f, &[c"logCalls"]);
+        ok(
+            unsafe { fmi2DoStep(f.c, 1.0, 1.0, FMI2_TRUE) },
+            "fmi2DoStep",
+        );
+        assert_eq!(
+            calls(&f),
+            ["fmi2DoStep(currentCommunicationPoint=1, communicationStepSize=1)"],
+            "{kind:?}"
+        );
+    }
+}
+
+/// A plant whose linear block is unstable (a1 = -2: x doubles every sample) diverges within a step of 2000
+/// samples: the step answers fmi2Error, and in the error state, where the getters stay legal, the non-finite
+/// output is refused however many references one fmi2GetReal asks for (up to 32 are read into a buffer on
+/// the stack, more one by one).
+#[test]
+fn a_diverged_output_is_never_handed_out() {
+    let kind = Kind::Plant;
+    let f = drive(kind, Reach::InitializationMode, "diverged");
+    ok(
+        f.set_real(&[kind.vr("Ts"), kind.vr("a1")], &[1.0, -2.0]),
+        "Ts, a1",
+    );
+    ok(
+        unsafe { fmi2ExitInitializationMode(f.c) },
+        "fmi2ExitInitializationMode",
+    );
+    ok(f.set_real(&[kind.vr("u")], &[1.0]), "u");
+    assert_eq!(unsafe { fmi2DoStep(f.c, 0.0, 2000.0, FMI2_TRUE) }, ERROR);
+    assert_eq!(f.state(), State::Error);
+    let y = kind.vr("y");
+    for n in [1, 32, 33, 40] {
+        f.clear_log();
+        let (s, _) = f.get_real(&vec![y; n]);
+        assert_eq!(s, ERROR, "{n} references");
+        let log = f.log();
+        assert!(
+            log.iter().any(|e| e.message.contains("'y' is not finite")),
+            "{n} references: {log:?}"
+        );
+    }
+}
+
+/// fmi2ExitInitializationMode refuses a sample period that is not positive and finite, however it got into
+/// the model (the setters and a restored state refuse Ts below its minimum, so the model is set here, white
+/// box, as a model's own bug could leave it).
+#[test]
+fn exit_initialization_refuses_a_sample_period_that_is_not_positive() {
+    let kind = Kind::Estimator;
+    let ts = kind
+        .variables()
+        .iter()
+        .position(|v| v.name == "Ts")
+        .unwrap();
+    for bad in [0.0, -1.0, f64::INFINITY, f64::NAN] {
+        let f = drive(kind, Reach::InitializationMode, "ts");
+        unsafe { (*(f.c as *mut Instance)).slave.set(ts, Value::Real(bad)) };
+        assert_eq!(
+            unsafe { fmi2ExitInitializationMode(f.c) },
+            ERROR,
+            "Ts = {bad}"
+        );
+        let last = f.log().last().cloned().unwrap();
+        assert!(
+            last.message
+                .contains(&format!("parameter Ts = {bad} must be positive and finite")),
+            "{last:?}"
+        );
     }
 }

@@ -189,6 +189,22 @@ fn plant_stepped_by_n_ts_holds_the_input_over_the_step() {
     }
 }
 
+/// A step that reaches an instant and goes on past it has held u there: u(1) is the value set before the
+/// step from 0 to 1.5 Ts, not the one the master sets at 1.5 Ts, between the instants, before its next step.
+#[test]
+fn plant_stepped_past_an_instant_keeps_the_input_held_there() {
+    let ts = 1.0;
+    let u = |k: u64| if k <= 1 { 2.0 } else { -2.0 };
+    let want = plant_reference(ts, 4, u);
+    let p = Fmu::new(Kind::Plant, "past", ts);
+    p.set(&["u"], &[u(0)]);
+    assert_eq!(p.step(0.0, 1.5), OK);
+    assert_eq!(p.get(&PLANT_OUT), want[1]);
+    p.set(&["u"], &[u(2)]);
+    assert_eq!(p.step(1.5, 2.5), OK);
+    assert_eq!(p.get(&PLANT_OUT), want[4]);
+}
+
 /// The estimator fed by the reference plant's y, stepped so that each sample takes `m` sub-steps of `h`.
 fn estimator_run(ts: f64, n: u64, m: u64, h: f64, y: &[Vec<f64>]) -> Vec<Vec<f64>> {
     let e = Fmu::new(Kind::Estimator, "estimator", ts);

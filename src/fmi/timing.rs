@@ -217,4 +217,39 @@ mod tests {
         let e = l.check_clock(0.1).unwrap_err();
         assert!(e.contains("after its stop_time 10"), "{e}");
     }
+
+    /// A step reaches t_k when it ends within the time tolerance before it, relative to t_k (a float32 clock
+    /// late in a run, or far from time 0): the clock such a step leaves passes the check; a clock further
+    /// before t_k does not. From start time 1000, t_1000 at Ts = 0.1 is 1100 (tolerance 1.1e-4).
+    #[test]
+    fn a_clock_just_before_the_instant_it_reached_is_consistent() {
+        for (start, early, too_early) in [(0.0, 5e-6, 2e-5), (1000.0, 1e-4, 1.2e-4)] {
+            let mut l = LayerState::new(1);
+            l.start_time = start;
+            let t_k = start + 100.0;
+            (l.samples, l.time) = (999, start + 99.9);
+            let end = t_k - early;
+            assert_eq!(l.instants_reached(0.1, end, end - l.time), 1, "{start}");
+            (l.samples, l.time) = (1000, end);
+            assert_eq!(l.check_clock(0.1), Ok(()), "{start}");
+            l.time = t_k - too_early;
+            let e = l.check_clock(0.1).unwrap_err();
+            assert!(
+                e.contains("not between sample instant 1000"),
+                "{start}: {e}"
+            );
+        }
+    }
+
+    /// currentCommunicationPoint may differ from the clock by the time tolerance itself (relative to the clock,
+    /// Ts the floor of the scale): a step from there is accepted, one from twice as far is refused.
+    #[test]
+    fn a_step_may_start_the_time_tolerance_off_the_clock() {
+        let l = LayerState::new(1);
+        let tol = time_tolerance(0.0, 1.0);
+        assert_eq!(tol, TIME_TOLERANCE);
+        assert_eq!(l.step_end(1.0, tol, 1.0), Ok(tol + 1.0));
+        let e = l.step_end(1.0, 2.0 * tol, 1.0).unwrap_err();
+        assert!(e.contains("is not the instance's time"), "{e}");
+    }
 }

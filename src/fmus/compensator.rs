@@ -153,6 +153,10 @@ impl Model for CompensatorFmu {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fmi::fmu_state;
+    use crate::fmi::state::State;
+    use crate::fmi::timing::LayerState;
+    use crate::fmi::vars::input_indices;
 
     fn at(r: f64, fmu: &mut CompensatorFmu) -> f64 {
         fmu.set(Var::R, Value::Real(r));
@@ -196,6 +200,39 @@ mod tests {
             let e = forged.check_restored().unwrap_err();
             assert!(e.contains("Ts"), "{ts}: {e}");
         }
+    }
+
+    /// A restored initialised compensator whose inverse's smoothing is not the parameter smoothing (as no run
+    /// leaves it: the parameter is fixed once the inverse is built) is refused.
+    #[test]
+    fn a_restored_inverse_must_have_the_parameter_smoothing() {
+        let mut fmu = CompensatorFmu::new();
+        fmu.exit_initialization().unwrap();
+        fmu.smoothing = 0.5;
+        let e = fmu.check_restored().unwrap_err();
+        assert!(e.contains("smoothing differs"), "{e}");
+    }
+
+    /// The committed count is the model's sample count an FMU state is checked against: a compensator's
+    /// state saves and restores before initialisation (no count) and after three samples (count 3, the
+    /// layer at t_3), and the count survives the round trip.
+    #[test]
+    fn a_state_restores_with_its_sample_count() {
+        let restored = |fmu: &CompensatorFmu, layer: &LayerState| {
+            let bytes = fmu_state::save(fmu, layer).unwrap();
+            fmu_state::parse::<CompensatorFmu>(&bytes)
+                .unwrap()
+                .1
+                .samples()
+        };
+        let mut fmu = CompensatorFmu::new();
+        let mut layer = LayerState::new(input_indices(&md::VARIABLES).len());
+        assert_eq!(fmu.samples(), None);
+        assert_eq!(restored(&fmu, &layer), None);
+        fmu.exit_initialization().unwrap();
+        fmu.step(3).unwrap();
+        (layer.state, layer.samples, layer.time) = (State::StepComplete, 3, 3.0);
+        assert_eq!(restored(&fmu, &layer), Some(3));
     }
 
     #[test]

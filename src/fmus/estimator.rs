@@ -593,4 +593,30 @@ mod tests {
         sample(&mut fmu);
         assert_eq!(fmu.get(Var::WearReset), Value::Boolean(false));
     }
+
+    /// A restored state is checked: an initialised estimator's own state passes, with the wear monitor off and
+    /// on; a non-finite u or y (each alone), or a running monitor whose settings are not the parameters
+    /// wear_*, is refused by what is wrong.
+    #[test]
+    fn a_restored_state_is_refused_by_what_is_wrong() {
+        let initialised = |monitor: bool| {
+            let mut fmu = EstimatorFmu::new();
+            fmu.set(Var::Monitor, Value::Boolean(monitor));
+            fmu.exit_initialization().unwrap();
+            fmu
+        };
+        for monitor in [false, true] {
+            assert_eq!(initialised(monitor).check_restored(), Ok(()), "{monitor}");
+        }
+        for (var, bad) in [(Var::U, f64::NAN), (Var::Y, f64::INFINITY)] {
+            let mut forged = initialised(false);
+            forged.set(var, Value::Real(bad));
+            let e = forged.check_restored().unwrap_err();
+            assert!(e.contains("u or y is not valid"), "{var:?} = {bad}: {e}");
+        }
+        let mut forged = initialised(true);
+        forged.set(Var::WearRatio, Value::Real(forged.wear.wear_ratio * 2.0));
+        let e = forged.check_restored().unwrap_err();
+        assert!(e.contains("wear monitor's state differs"), "{e}");
+    }
 }
