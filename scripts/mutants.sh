@@ -11,7 +11,8 @@
 #   scripts/mutants.sh effects K N    shard K of N of src/diagnose/effects (about 1060 mutants; N = 30 runs
 #                                     about 35), against the tests that cover it: the effects' unit tests
 #                                     (`diagnose::effects`) and the bench's tests of each effect's draw
-#                                     (`diagnose::bench::draw_tests`, `curved_border_draws`), under a second
+#                                     (`diagnose::bench::draw_tests`, `curved_border_draws`) and the decision's
+#                                     tests, which read each effect's structure penalty, under a second
 #   scripts/mutants.sh mrgia K N      shard K of N of src/identify/mrgia.rs without the state checks that
 #                                     `TryFrom<MrgiaState>` selects (about 220 mutants; N = 7 runs about 31),
 #                                     against the library's `mrgia` unit tests (under a second)
@@ -66,7 +67,8 @@ effects)
     [ $# -eq 3 ] || { echo "usage: $0 effects K N" >&2; exit 2; }
     # Several filters: after a second `--` they go to the test binary (`cargo test` takes one).
     run -f 'src/diagnose/effects/*.rs' -f 'src/diagnose/effects/**/*.rs' --sharding round-robin \
-        --shard "$2/$3" -C --lib -- -- diagnose::effects diagnose::bench::draw_tests curved_border_draws
+        --shard "$2/$3" -C --lib -- -- diagnose::effects diagnose::bench::draw_tests curved_border_draws \
+        diagnose::search::decision
     ;;
 mrgia)
     [ $# -eq 3 ] || { echo "usage: $0 mrgia K N" >&2; exit 2; }
