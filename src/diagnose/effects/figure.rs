@@ -225,6 +225,76 @@ pub fn outside(r: &[f64], band: f64) -> usize {
     r.iter().filter(|v| v.abs() > band).count()
 }
 
+/// A record for the effects' evidence tests: the paper's plain model and a model with one effect, both
+/// driven by the same input, the record being the latter's output.
+#[cfg(test)]
+pub(crate) struct TestRecord {
+    pub t: Vec<f64>,
+    pub u: Vec<f64>,
+    pub y: Vec<f64>,
+    pub declared: Simulation,
+    /// The plain model's residual over the record, and the effect's model's (zero: it is the record).
+    pub e0: Vec<f64>,
+    pub e1: Vec<f64>,
+}
+
+#[cfg(test)]
+impl TestRecord {
+    /// `n` samples of the test input through the paper's plain model and through `with` (the record).
+    pub fn of(with: &EffectModel, n: usize) -> Self {
+        use crate::diagnose::fit::model::Rest;
+        use crate::diagnose::fit::model::tests::{input, paper_base};
+        let u = input(n);
+        let declared = EffectModel::plain(paper_base())
+            .simulate(&u, Rest::ZERO, n, 1e9)
+            .expect("the plain model runs");
+        let y = with
+            .simulate(&u, Rest::ZERO, n, 1e9)
+            .expect("the model with the effect runs")
+            .y;
+        let e0 = y.iter().zip(&declared.y).map(|(a, b)| a - b).collect();
+        Self {
+            t: (0..n).map(|k| k as f64).collect(),
+            u,
+            declared,
+            e0,
+            e1: vec![0.0; n],
+            y,
+        }
+    }
+
+    /// The figure of this record with its first `n_fit` samples the fit part, drawn to `path` for the test
+    /// `test`, the effect's model `model` (named `after_label`) followed by the record itself.
+    pub fn figure<'a>(
+        &'a self,
+        path: &'a Path,
+        test: &'a str,
+        n_fit: usize,
+        after_label: &'a str,
+        model: &'a EffectModel,
+    ) -> Figure<'a> {
+        Figure {
+            path,
+            test,
+            n: self.y.len(),
+            n_fit,
+            t: &self.t,
+            u: &self.u,
+            y: &self.y,
+            columns: ["t", "u", "y"],
+            declared: &self.declared,
+            plain_label: "plain",
+            e0: &self.e0,
+            e1: &self.e1,
+            e1_pred: None,
+            after_label,
+            model,
+            output: &self.y,
+            lags: 10,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -209,6 +209,7 @@ const BINS: usize = 20;
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::diagnose::effects::figure::TestRecord;
     use crate::diagnose::fit::model::Rest;
     use crate::diagnose::fit::model::tests::{input, paper_base};
     use crate::diagnose::fit::starts::tests::{context, paper};
@@ -270,33 +271,10 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("pf-evidence-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("evidence.png");
-        let n = 300;
-        let u = input(n);
-        let plain = EffectModel::plain(paper_base());
-        let declared = plain.simulate(&u, Rest::ZERO, n, 1e9).unwrap();
-        let with = plain.with(extension(0.0, -0.02, 1.0));
-        let y = with.simulate(&u, Rest::ZERO, n, 1e9).unwrap().y;
-        let e0: Vec<f64> = y.iter().zip(&declared.y).map(|(a, b)| a - b).collect();
-        let (e1, t) = (vec![0.0; n], (0..n).map(|k| k as f64).collect::<Vec<_>>());
-        let fig = Figure {
-            path: &path,
-            test: "none",
-            n,
-            n_fit: 210,
-            t: &t,
-            u: &u,
-            y: &y,
-            columns: ["t", "u", "y"],
-            declared: &declared,
-            plain_label: "plain",
-            e0: &e0,
-            e1: &e1,
-            e1_pred: None,
-            after_label: "plain + polynomial-feedback",
-            model: &with,
-            output: &y,
-            lags: 10,
-        };
+        let with = EffectModel::plain(paper_base()).with(extension(0.0, -0.02, 1.0));
+        let record = TestRecord::of(&with, 300);
+        let e0 = &record.e0;
+        let fig = record.figure(&path, "none", 210, "plain + polynomial-feedback", &with);
         let caption = PolynomialFeedback.evidence(&fig).unwrap();
         let distance: f64 = caption
             .split("RMS distance between the two: ")

@@ -143,41 +143,15 @@ mod tests {
     /// generic figure, whose caption does not speak of a grid.
     #[test]
     fn evidence_draws_the_held_out_stretch_and_names_the_step() {
-        use crate::diagnose::fit::model::tests::input;
-        use crate::diagnose::fit::model::tests::paper_base;
-        use crate::diagnose::fit::model::{EffectModel, Rest};
+        use crate::diagnose::effects::figure::TestRecord;
         let dir = std::env::temp_dir().join(format!("quant-evidence-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("a temporary folder");
-        let n = 400;
-        let u = input(n);
-        let t: Vec<f64> = (0..n).map(|k| k as f64).collect();
-        let plain = EffectModel::plain(paper_base());
-        let declared = plain.simulate(&u, Rest::ZERO, n, 1e9).expect("it runs");
+        let plain = paper();
         let with = plain.with(extension(0.25, 0.0, 0.0));
-        let y = with.simulate(&u, Rest::ZERO, n, 1e9).expect("it runs").y;
-        let e0: Vec<f64> = y.iter().zip(&declared.y).map(|(a, b)| a - b).collect();
-        let e1 = vec![0.0; n];
+        let record = TestRecord::of(&with, 400);
         let caption = |model: &EffectModel, name: &str| {
             let path = dir.join(name);
-            let fig = Figure {
-                path: &path,
-                test: "lattice",
-                n,
-                n_fit: 280,
-                t: &t,
-                u: &u,
-                y: &y,
-                columns: ["t", "u", "y"],
-                declared: &declared,
-                plain_label: "plain",
-                e0: &e0,
-                e1: &e1,
-                e1_pred: None,
-                after_label: "plain + quantization",
-                model,
-                output: &y,
-                lags: 10,
-            };
+            let fig = record.figure(&path, "lattice", 280, "plain + quantization", model);
             let said = Quantization.evidence(&fig).expect("it draws");
             (said, path.metadata().map_or(0, |m| m.len()))
         };
